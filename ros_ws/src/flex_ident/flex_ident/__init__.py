@@ -1,0 +1,1 @@
+"""Flexible-object stiffness identification: variational-integrator model, discrete adjoint, logger and identifier nodes."""

@@ -1,0 +1,1 @@
+"""Fake hardware (bag replay), bag tools and the arm-command bridge."""

@@ -1,0 +1,1 @@
+"""Rod deployment: discrete elastic rods, optimal grasp, neural controller, planning and pattern perception."""
