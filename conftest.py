@@ -1,0 +1,76 @@
+"""Test configuration for the whole workspace: DDS stays on loopback, and a per-test ROS context.
+
+Every test process gets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, a random ROS_DOMAIN_ID and a temporary
+ROS_LOG_DIR before rclpy is imported anywhere (the Makefile and .ci/run set them too).
+"""
+import os
+import random
+import tempfile
+import threading
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
+os.environ.setdefault('ROS_LOG_DIR', tempfile.mkdtemp(prefix='ros_log_'))
+os.environ.setdefault('MPLBACKEND', 'Agg')
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def ros_context():
+    """An initialised rclpy Context with a MultiThreadedExecutor spinning in a background thread.
+
+    Yields an object with ``context``, ``executor`` and ``add(node)``; nodes added are destroyed and the
+    context shut down at teardown. Pattern from rclpy's own tests (see docs: no launch_testing here).
+    """
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import MultiThreadedExecutor
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=int(os.environ['ROS_DOMAIN_ID']))
+    executor = MultiThreadedExecutor(num_threads=4, context=ctx)
+    nodes = []
+
+    class Handle:
+        context = ctx
+
+        def __init__(self):
+            self.executor = executor
+
+        def add(self, node):
+            nodes.append(node)
+            executor.add_node(node)
+            return node
+
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        yield Handle()
+    finally:
+        for node in nodes:
+            if hasattr(node, 'close'):
+                node.close()
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        thread.join(timeout=5)
+
+
+def _wait_for(predicate, timeout_s=10.0, period_s=0.01):
+    """Poll ``predicate`` until it is true or ``timeout_s`` passes; return its last value."""
+    import time
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(period_s)
+    return predicate()
+
+
+@pytest.fixture
+def wait_for():
+    """``wait_for(predicate, timeout_s=10)``: poll instead of sleeping for discovery or delivery."""
+    return _wait_for
