@@ -121,9 +121,9 @@ def joint_state_message(stamp_ns: int, names, position=(), velocity=(), effort=(
                                                    nanosec=int(stamp_ns % 1_000_000_000))
     header = types['std_msgs/msg/Header'](stamp=stamp, frame_id='')
     return types[JOINT_STATE_TYPE](header=header, name=list(names),
-                                   position=np.asarray(position, dtype=np.float64),
-                                   velocity=np.asarray(velocity, dtype=np.float64),
-                                   effort=np.asarray(effort, dtype=np.float64))
+                                   position=np.ascontiguousarray(position, dtype=np.float64),
+                                   velocity=np.ascontiguousarray(velocity, dtype=np.float64),
+                                   effort=np.ascontiguousarray(effort, dtype=np.float64))
 
 
 def write_joint_recording(bag_path: str | Path, rec: JointRecording, storage: str = 'mcap',

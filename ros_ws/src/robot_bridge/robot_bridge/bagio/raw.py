@@ -10,6 +10,7 @@ rebuilds a readable bag, as ``ros2 bag reindex`` does.
 """
 from __future__ import annotations
 
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -90,8 +91,10 @@ class RawBagWriter:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, exc, tb):
         self.close()
+        if exc_type is not None:      # a bag written in one go that failed half-way is not a result
+            shutil.rmtree(self.path, ignore_errors=True)
 
 
 def open_reader(path: str | Path) -> AnyReader:

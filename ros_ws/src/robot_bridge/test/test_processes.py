@@ -1,0 +1,86 @@
+"""The nodes as separate processes from their console scripts: record/replay, clean close on SIGINT and
+SIGTERM, recovery after SIGKILL, and one clear error line for a bad bag."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from robot_bridge.bagio.contract import JointRecording, write_joint_recording
+from robot_bridge.bagio.raw import iter_raw_messages
+from robot_bridge.bagio.reindex import reindex_bag
+
+BIN = os.path.dirname(sys.executable)
+
+
+def make_bag(path, seconds, rate_hz=200):
+    n = int(seconds * rate_hz)
+    rng = np.random.default_rng(0)
+    rec = JointRecording(np.arange(n) / rate_hz, ['a', 'b'], rng.normal(size=(n, 2)), None,
+                         rng.normal(size=(n, 2)), stamp0_ns=1_000_000_000)
+    write_joint_recording(path, rec)
+    return [m.data for m in iter_raw_messages(path)]
+
+
+def start(exe, *params):
+    args = [os.path.join(BIN, exe), '--ros-args', '--log-level', 'warn']
+    for p in params:
+        args += ['-p', p]
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_file(path, timeout=20):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not os.path.exists(path):
+        time.sleep(0.05)
+
+
+@pytest.mark.parametrize('stop_signal', [signal.SIGINT, signal.SIGTERM])
+def test_separate_processes_record_replay_and_close_cleanly(tmp_path, stop_signal):
+    original = make_bag(tmp_path / 'in', seconds=2.0)
+    logger = start('joint_state_logger', f'output:={tmp_path / "out"}', "topics:=['/joint_states']")
+    player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=20.0')
+    assert player.wait(timeout=60) == 0, player.stderr.read()
+    time.sleep(0.5)
+    logger.send_signal(stop_signal)
+    assert logger.wait(timeout=20) == 0, logger.stderr.read()
+    assert [m.data for m in iter_raw_messages(tmp_path / 'out')] == original
+
+
+def test_after_sigkill_everything_older_than_one_second_is_recovered(tmp_path):
+    original = make_bag(tmp_path / 'in', seconds=8.0)
+    logger = start('joint_state_logger', f'output:={tmp_path / "out"}', "topics:=['/joint_states']")
+    player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=20.0')
+    wait_file(tmp_path / 'out')
+    time.sleep(5.0)
+    kill_ns = time.time_ns()
+    logger.kill()
+    logger.wait(timeout=10)
+    player.kill()
+    player.wait(timeout=10)
+    recovered_n = reindex_bag(tmp_path / 'out')
+    recovered = list(iter_raw_messages(tmp_path / 'out'))
+    assert recovered_n == len(recovered) > 0
+    assert [m.data for m in recovered] == original[:len(recovered)]   # a lossless prefix
+    assert recovered[-1].timestamp_ns >= kill_ns - 1_000_000_000      # lost at most the last second
+    assert (tmp_path / 'out.unindexed').exists()
+
+
+def test_player_with_missing_bag_prints_one_error_line(tmp_path):
+    player = start('bag_player', f'bag:={tmp_path / "nope"}')
+    assert player.wait(timeout=30) == 1
+    err = [line for line in player.stderr.read().splitlines() if line.strip()]
+    assert len(err) == 1 and 'does not exist' in err[0]
+
+
+def test_player_with_corrupt_bag_prints_one_error_line(tmp_path):
+    make_bag(tmp_path / 'in', seconds=0.5)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[:200])
+    player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=0.0')
+    assert player.wait(timeout=30) == 1
+    err = [line for line in player.stderr.read().splitlines() if line.strip()]
+    assert len(err) == 1 and 'error' in err[0], err
