@@ -72,3 +72,18 @@ def test_malformed_messages_are_recorded_and_counted(ros_context, wait_for, tmp_
     logger = record_replay(ros_context, wait_for, bag, tmp_path / 'out', 'mcap', ['/joint_states'], rate=5.0)
     assert logger.malformed == 3
     assert [m.data for m in iter_raw_messages(tmp_path / 'out')] == [m.data for m in iter_raw_messages(bag)]
+
+
+def test_logger_matches_a_best_effort_publisher(ros_context, wait_for, tmp_path):
+    """A RELIABLE subscription would not match a BEST_EFFORT publisher: the logger must adapt."""
+    from rclpy.qos import ReliabilityPolicy
+    bag = make_bag(tmp_path / 'in', 'mcap', n=100, extra_topic=False)
+    logger = ros_context.add(JointStateLogger(context=ros_context.context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'out')), Parameter('topics', value=['/joint_states'])]))
+    player = ros_context.add(BagPlayer(context=ros_context.context, parameter_overrides=[
+        Parameter('bag', value=str(bag)), Parameter('reliable', value=False), Parameter('rate', value=2.0),
+        Parameter('wait_for_subscribers', value=10.0)]))
+    assert wait_for(lambda: player.done.is_set(), timeout_s=30)
+    sub = logger._topic_subscriptions['/joint_states']
+    assert sub.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert wait_for(lambda: logger.counts['/joint_states'] == 100, timeout_s=5), logger.counts

@@ -84,7 +84,7 @@ class JointStateLogger(Node):
             msgtype = infos[0].topic_type
             reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
             qos = QoSProfile(
-                history=HistoryPolicy.KEEP_LAST, depth=SUBSCRIPTION_DEPTH,
+                history=HistoryPolicy.KEEP_ALL, depth=SUBSCRIPTION_DEPTH,
                 reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
                 durability=DurabilityPolicy.VOLATILE)
             try:

@@ -1,0 +1,226 @@
+"""Sub-pixel centreline: edge-centred refinement, smoothing, end placement and arc-length resampling.
+
+A skeleton is a chain of pixel centres, up to half a pixel off the true centre line and shortened or
+lengthened at the ends. For each point of a traced path the foreground evidence is sampled (bilinearly)
+across the path, the two boundary crossings at ``edge_fraction`` of the local peak are found to sub-pixel
+precision, and the point moves to their midpoint; the distance between them is the local width.
+Points in crossings, where a second strand corrupts the profile, and points whose width is implausible
+keep their skeleton position (their correction is interpolated from the neighbours). The path is then
+smoothed along its arc length by a Gaussian (odd reflection at open ends keeps the ends and their
+tangents) and each open end is placed one half-width inside the object's boundary along its tangent,
+i.e. at the centre of a round pen tip or of a round-capped rod end; an end that runs off the image
+stops at the image border. Units: pixels, points (row, col).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+
+@dataclass
+class RefinedPath:
+    points: np.ndarray          # (n, 2) (row, col) [px]
+    width_px: float             # median measured width (nan if never measured)
+    closed: bool
+    widths: np.ndarray          # per-point measured width [px], nan where not measured
+
+
+def arc_length(points: np.ndarray) -> np.ndarray:
+    if len(points) < 2:
+        return np.zeros(len(points))
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
+
+
+def resample(points: np.ndarray, step_px: float) -> np.ndarray:
+    """Points at equal arc-length spacing (last spacing at most ``step_px``), both ends kept."""
+    points = np.asarray(points, dtype=np.float64)
+    s = arc_length(points)
+    keep = np.concatenate([[True], np.diff(s) > 1e-9])
+    points, s = points[keep], s[keep]
+    if len(points) < 2 or s[-1] <= 0:
+        return points[:1].copy()
+    n = max(2, int(np.ceil(s[-1] / step_px)) + 1)
+    t = np.linspace(0.0, s[-1], n)
+    return np.stack([np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])], axis=1)
+
+
+def smooth(points: np.ndarray, sigma_pts: float, closed: bool) -> np.ndarray:
+    """Gaussian smoothing along the point index (points at ~equal spacing). Open paths use odd (point)
+    reflection at the ends, which keeps the end points and straight end tangents unbiased."""
+    if sigma_pts <= 0 or len(points) < 3:
+        return points.copy()
+    if closed:
+        body = points[:-1]
+        out = gaussian_filter1d(body, sigma_pts, axis=0, mode='wrap')
+        return np.vstack([out, out[:1]])
+    pad = min(len(points) - 1, int(np.ceil(4 * sigma_pts)))
+    head = 2 * points[0] - points[pad:0:-1]
+    tail = 2 * points[-1] - points[-2:-pad - 2:-1]
+    ext = np.vstack([head, points, tail])
+    out = gaussian_filter1d(ext, sigma_pts, axis=0, mode='nearest')
+    return out[pad:pad + len(points)]
+
+
+def tangents(points: np.ndarray, closed: bool) -> np.ndarray:
+    if len(points) < 2:
+        return np.tile([0.0, 1.0], (len(points), 1))
+    if closed:
+        body = points[:-1]
+        t = np.roll(body, -1, axis=0) - np.roll(body, 1, axis=0)
+        t = np.vstack([t, t[:1]])
+    else:
+        t = np.gradient(points, axis=0)
+    norm = np.linalg.norm(t, axis=1, keepdims=True)
+    norm[norm == 0] = 1.0
+    return t / norm
+
+
+def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray, half_span_px: float,
+                  step_px: float = 0.5):
+    """Evidence sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals."""
+    offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
+    rows = points[:, 0:1] + offsets[None, :] * normals[:, 0:1]
+    cols = points[:, 1:2] + offsets[None, :] * normals[:, 1:2]
+    prof = cv2.remap(evidence, cols.astype(np.float32), rows.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
+    return prof, offsets
+
+
+def edge_crossings(profiles: np.ndarray, offsets: np.ndarray, edge_fraction: float, floor: float,
+                   core_px: float):
+    """Sub-pixel offsets of the left and right boundary in each profile (nan if not found).
+
+    The level is ``edge_fraction`` of the profile's peak within ``core_px`` of the path (at least
+    ``floor``); the boundaries are the nearest crossings of that level on either side of the path.
+    """
+    k = profiles.shape[1]
+    c = k // 2
+    core = np.abs(offsets) <= core_px
+    peak = profiles[:, core].max(axis=1)
+    level = np.maximum(edge_fraction * peak, floor)
+    below = profiles < level[:, None]
+    n = len(profiles)
+    idx = np.arange(n)
+    # left: last index <= c that is below the level
+    left_below = below[:, :c + 1]
+    has_l = left_below.any(axis=1)
+    jl = c - np.argmax(left_below[:, ::-1], axis=1)          # below
+    # right: first index >= c that is below
+    right_below = below[:, c:]
+    has_r = right_below.any(axis=1)
+    jr = c + np.argmax(right_below, axis=1)                  # below
+    valid = has_l & has_r & (jl < c) & (jr > c)
+    jl1 = np.clip(jl + 1, 0, k - 1)
+    jr0 = np.clip(jr - 1, 0, k - 1)
+    step = offsets[1] - offsets[0]
+
+    def interp(j_lo, j_hi, sign):
+        p_lo, p_hi = profiles[idx, j_lo], profiles[idx, j_hi]
+        denom = p_hi - p_lo
+        denom[np.abs(denom) < 1e-6] = 1e-6
+        return offsets[j_lo] + step * (level - p_lo) / denom
+
+    o_l = interp(jl, jl1, 1)
+    o_r = interp(jr0, jr, -1)
+    o_l[~valid] = np.nan
+    o_r[~valid] = np.nan
+    return o_l, o_r, level
+
+
+def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_px: float,
+           edge_fraction: float, floor: float, exclude=None, sigma_px: float = 1.5) -> RefinedPath:
+    """Edge-centred, smoothed path at 1 px spacing (see module docstring); ``exclude(points)`` returns a
+    bool mask of points whose profile must not be trusted, e.g. inside crossings."""
+    pts = resample(points, 1.0)
+    if len(pts) < 3:
+        return RefinedPath(pts, float('nan'), closed, np.full(len(pts), np.nan))
+    pts = smooth(pts, 1.0, closed)
+    t = tangents(smooth(pts, 2.0, closed), closed)
+    normals = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    half_span = 1.2 * approx_width_px + 3.0
+    prof, offsets = edge_profiles(evidence, pts, normals, half_span)
+    o_l, o_r, _ = edge_crossings(prof, offsets, edge_fraction, floor, core_px=0.5 * approx_width_px + 1.0)
+    width = o_r - o_l
+    centre = 0.5 * (o_l + o_r)
+    ok = np.isfinite(width)
+    if exclude is not None:
+        ok &= ~exclude(pts)
+    if ok.sum() >= 3:
+        w_med = float(np.median(width[ok]))
+        ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
+    widths = np.where(ok, width, np.nan)
+    if ok.sum() >= 3:
+        i = np.arange(len(pts))
+        delta = np.interp(i, i[ok], centre[ok])
+        delta = gaussian_filter1d(delta, 2.0, mode='wrap' if closed else 'nearest')
+        pts = pts + delta[:, None] * normals
+        w_obj = float(np.median(width[ok]))
+    else:
+        w_obj = float('nan')
+    pts = smooth(pts, sigma_px, closed)
+    if closed:
+        pts[-1] = pts[0]
+    return RefinedPath(pts, w_obj, closed, widths)
+
+
+def place_ends(path: RefinedPath, evidence: np.ndarray, edge_fraction: float, floor: float,
+               half_width_px: float, tangent_px: float) -> RefinedPath:
+    """Move each open end to half a width inside the boundary met along the end tangent (or to the image
+    border when the object runs off the image); extension along the tangent, trimming along the path."""
+    if path.closed or len(path.points) < 3:
+        return path
+    pts = path.points
+    h, w = evidence.shape
+    for end in (0, 1):
+        p = pts if end == 1 else pts[::-1]
+        s = arc_length(p)
+        # drop the last ~half width (thinning bends it towards a corner of a flat end), take the tangent
+        # from the stretch before it
+        trim = min(0.6 * half_width_px * 2.0, 0.25 * s[-1])
+        keep = int(np.searchsorted(s, s[-1] - trim, side='right'))
+        keep = max(keep, 2)
+        p = p[:keep]
+        s = s[:keep]
+        j = int(np.searchsorted(s, s[-1] - tangent_px))
+        j = min(max(j, 0), len(p) - 2)
+        t = p[-1] - p[j]
+        nt = np.linalg.norm(t)
+        if nt < 1e-9:
+            pts = p if end == 1 else p[::-1]
+            continue
+        t /= nt
+        reach = 2.0 * half_width_px + 4.0
+        steps = np.arange(0.0, reach + 1e-9, 0.25)
+        ray = p[-1][None, :] + steps[:, None] * t[None, :]
+        inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
+        vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
+                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
+        level = max(edge_fraction * float(vals[: max(1, int(2 / 0.25))].max()), floor)
+        below = (vals < level) & inside
+        if below.any():
+            k = int(np.argmax(below))
+            if k == 0:
+                continue
+            b = steps[k - 1] + 0.25 * (vals[k - 1] - level) / max(vals[k - 1] - vals[k], 1e-6)
+            target = b - half_width_px
+        else:                       # ran off the image while still on the object: stop at the border
+            k_out = int(np.argmin(inside)) if not inside.all() else len(steps)
+            target = steps[max(k_out - 1, 0)]
+        if target > 0.5:
+            extra = np.arange(1.0, target + 1e-9, 1.0)
+            if extra.size == 0 or extra[-1] < target - 1e-6:
+                extra = np.append(extra, target)
+            p = np.vstack([p, p[-1] + extra[:, None] * t[None, :]])
+        elif target < -0.5:
+            cut = min(-target, 0.5 * half_width_px + 1.0, 0.3 * s[-1])
+            keep = s <= s[-1] - cut
+            last = np.interp(s[-1] - cut, s, np.arange(len(p)))
+            i0 = int(np.floor(last))
+            frac = last - i0
+            q = p[i0] + frac * (p[min(i0 + 1, len(p) - 1)] - p[i0])
+            p = np.vstack([p[keep], q[None]])
+        pts = p if end == 1 else p[::-1]
+    return RefinedPath(pts, path.width_px, path.closed, path.widths)

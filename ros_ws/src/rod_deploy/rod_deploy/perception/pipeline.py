@@ -1,0 +1,200 @@
+"""Pattern and rod perception, image to ordered centrelines: the steps of mBEST (Choi et al. 2023) plus
+sub-pixel refinement.
+
+ 1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w;
+ 2. skeleton (``skimage.morphology.skeletonize``) and its graph (:mod:`.skeleton_graph`); spurs shorter than
+    ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped;
+ 3. crossings (:mod:`.bending_energy_pairing`): junctions closer than ``merge_factor`` w, and pairs of
+    three-way junctions closer than ``y_merge_factor`` w, form one crossing; branches paired by minimal
+    bending energy (anchors ``skip_factor`` w + 2 px out, tangents over 1.5 w);
+ 4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths);
+ 5. over/under at every crossing from colour where the strands differ (:mod:`.crossing_order`);
+ 6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
+    ends one half-width inside the boundary, arc-length resampling every ``step_px``.
+
+Objects are numbered by decreasing length. An open path starts at its end with the smaller column
+(leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in
+the image. Images above ``max_pixels`` are processed at a reduced scale (INTER_AREA) and the results are
+mapped back to full-resolution pixels. Units: pixels, points (row, col), integer values at pixel centres.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from rod_deploy.perception import centreline as cl
+from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
+from rod_deploy.perception.crossing_order import CrossingDecision, decide_crossings
+from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, as_bgr,
+                                                segment)
+from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
+                                                  prune_spurs, remove_small_parts, skeleton_of)
+from rod_deploy.perception.traversal import trace_objects
+
+
+class PerceptionError(ValueError):
+    """No usable stroke or rod in the image (the message says why)."""
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    segmentation: SegmentationConfig = SegmentationConfig()
+    step_px: float = 1.0                 # output point spacing along each path
+    smoothing_sigma_px: float = 1.5      # Gaussian smoothing along the path
+    spur_factor: float = 1.2             # spurs shorter than spur_factor * w + 2 px are pruned
+    min_length_factor: float = 4.0       # objects shorter than this many widths are dropped
+    merge_factor: float = 0.75           # junctions joined by chains shorter than this * w: one crossing
+    y_merge_factor: float = 5.0          # three-way junction pairs joined by chains shorter than this * w
+    skip_factor: float = 0.75            # branch anchors this many widths (+ 2 px) out of the crossing
+    refine: bool = True                  # edge-centred sub-pixel refinement
+    min_colour_separation: float = 12.0  # CIELAB a*b* difference needed to decide over/under
+    max_pixels: int = 12_000_000         # larger images are processed downscaled
+
+    def __post_init__(self):
+        if not self.step_px > 0:
+            raise ValueError(f'step_px must be > 0, got {self.step_px}')
+        if self.smoothing_sigma_px < 0:
+            raise ValueError(f'smoothing_sigma_px must be >= 0, got {self.smoothing_sigma_px}')
+        if self.max_pixels < 10_000:
+            raise ValueError(f'max_pixels must be >= 10000, got {self.max_pixels}')
+
+
+@dataclass
+class PerceivedObject:
+    points: np.ndarray       # (n, 2) (row, col) [px], ordered from one end (closed: first point repeated)
+    width_px: float          # stroke / rod width
+    closed: bool
+
+    def length_px(self) -> float:
+        return float(cl.arc_length(self.points)[-1]) if len(self.points) > 1 else 0.0
+
+
+@dataclass
+class PerceptionResult:
+    objects: list
+    crossings: list                          # CrossingDecision, positions in full-resolution pixels
+    segmentation: Segmentation               # at processing scale
+    image_shape: tuple
+    scale: float = 1.0                       # processing pixels per image pixel
+    timings_ms: dict = field(default_factory=dict)
+
+    def summary(self) -> str:
+        decided = sum(1 for c in self.crossings if c.over is not None)
+        return (f'{len(self.objects)} object(s), lengths '
+                f'{", ".join(f"{o.length_px():.0f}" for o in self.objects)} px, widths '
+                f'{", ".join(f"{o.width_px:.1f}" for o in self.objects)} px; {len(self.crossings)} crossing(s), '
+                f'{decided} with over/under decided from colour; segmentation {self.segmentation.describe()}')
+
+
+def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -> PerceptionResult:
+    """Ordered centrelines of the strokes or rods in ``image`` (BGR, BGRA or grey uint8)."""
+    timings = {}
+    t0 = time.perf_counter()
+    try:
+        bgr = as_bgr(image)
+    except SegmentationError as exc:
+        raise PerceptionError(str(exc)) from None
+    shape = bgr.shape[:2]
+    scale = 1.0
+    if shape[0] * shape[1] > config.max_pixels:
+        scale = float(np.sqrt(config.max_pixels / (shape[0] * shape[1])))
+        size = (max(1, int(round(shape[1] * scale))), max(1, int(round(shape[0] * scale))))
+        bgr = cv2.resize(bgr, size, interpolation=cv2.INTER_AREA)
+    try:
+        seg = segment(bgr, config.segmentation)
+    except SegmentationError as exc:
+        raise PerceptionError(str(exc)) from None
+    w = seg.stroke_width_px
+    t1 = time.perf_counter()
+    timings['segmentation'] = (t1 - t0) * 1e3
+
+    graph = build_skeleton_graph(skeleton_of(seg.mask))
+    t2 = time.perf_counter()
+    timings['skeleton'] = (t2 - t1) * 1e3
+    min_length = max(config.min_length_factor * w, 8.0)
+    remove_small_parts(graph, min_length)
+    prune_spurs(graph, config.spur_factor * w + 2.0)
+    dissolve_pass_through_junctions(graph)
+    remove_small_parts(graph, min_length)
+    crossings = find_crossings(graph, config.merge_factor * w, config.y_merge_factor * w)
+    pair_crossings(graph, crossings, config.skip_factor * w + 2.0, 1.5 * w + 2.0)
+    traced = [o for o in trace_objects(graph, crossings) if o.length_px() >= min_length]
+    if not traced:
+        raise PerceptionError(f'no stroke or rod found: every candidate is shorter than {min_length:.0f} px')
+    t3 = time.perf_counter()
+    timings['graph'] = (t3 - t2) * 1e3
+
+    decisions = decide_crossings(bgr, traced, w, config.min_colour_separation)
+    t4 = time.perf_counter()
+    timings['crossing_order'] = (t4 - t3) * 1e3
+
+    evidence = seg.evidence.astype(np.float32)
+    floor = 0.25 * seg.threshold
+    fraction = config.segmentation.edge_fraction
+    zones = _crossing_zones(crossings, w)
+    objects = []
+    for obj in traced:
+        if config.refine:
+            refined = cl.refine(obj.points, obj.closed, evidence, w, fraction, floor,
+                                exclude=lambda p: _in_zones(p, zones), sigma_px=config.smoothing_sigma_px)
+            width = refined.width_px if np.isfinite(refined.width_px) else w
+            refined = cl.place_ends(refined, evidence, fraction, floor, 0.5 * width, tangent_px=max(4.0, w))
+        else:
+            pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
+            width = w
+            refined = cl.RefinedPath(pts, w, obj.closed, np.full(len(pts), np.nan))
+        pts = cl.resample(refined.points, config.step_px * scale)
+        objects.append(PerceivedObject(pts / scale, width / scale, obj.closed))
+    t5 = time.perf_counter()
+    timings['centreline'] = (t5 - t4) * 1e3
+
+    objects, decisions = _canonical_order(objects, decisions)
+    for d in decisions:
+        d.position = d.position / scale
+    timings['total'] = (time.perf_counter() - t0) * 1e3
+    return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
+
+
+def _crossing_zones(crossings, w):
+    zones = []
+    for c in crossings:
+        if not c.branches:
+            continue
+        radius = max(float(np.linalg.norm(b.anchor - c.centre)) for b in c.branches) + 0.5 * w
+        zones.append((c.centre, radius))
+    return zones
+
+
+def _in_zones(points, zones):
+    out = np.zeros(len(points), dtype=bool)
+    for centre, radius in zones:
+        out |= np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= radius
+    return out
+
+
+def _canonical_order(objects, decisions):
+    """Objects by decreasing length; open paths from the leftmost end, closed ones counter-clockwise
+    (as seen in the image) from their leftmost point. Crossing decisions are renumbered to match."""
+    for obj in objects:
+        p = obj.points
+        if obj.closed:
+            body = p[:-1]
+            x, y = body[:, 1], -body[:, 0]
+            area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+            if area < 0:
+                body = body[::-1]
+            k = int(np.lexsort((body[:, 0], body[:, 1]))[0])
+            body = np.roll(body, -k, axis=0)
+            obj.points = np.vstack([body, body[:1]])
+        elif (p[-1, 1], p[-1, 0]) < (p[0, 1], p[0, 0]):
+            obj.points = p[::-1].copy()
+    order = sorted(range(len(objects)), key=lambda i: -objects[i].length_px())
+    new_id = {old: new for new, old in enumerate(order)}
+    for d in decisions:
+        d.objects = tuple(new_id[o] for o in d.objects)
+        d.over = None if d.over is None else new_id[d.over]
+        d.spans = ()
+    return [objects[i] for i in order], decisions
