@@ -96,3 +96,14 @@ def test_presets_on_the_shared_logs(tmp_path, preset, rel):
     assert main(['import-csv', str(SHARED / rel), '--out', str(tmp_path / 'bag'), '--preset', preset]) == 0
     rec = read_joint_recording(tmp_path / 'bag', require_effort=True)
     assert len(rec.t_s) > 900 and np.all(np.isfinite(rec.position))
+
+
+def test_window_covering_the_whole_recording_is_accepted_but_a_longer_one_is_not(tmp_path):
+    from robot_bridge.bagio.contract import JointRecording, write_joint_recording
+    from robot_bridge.bagio.raw import BagError
+    k = 2000
+    rec = JointRecording(np.arange(k) * 0.01, ['a'], np.zeros((k, 1)), None, np.zeros((k, 1)))
+    write_joint_recording(tmp_path / 'b', rec)
+    assert len(read_joint_recording(tmp_path / 'b', window=(0.0, 20.0)).t_s) == k
+    with pytest.raises(BagError, match='shorter than the window'):
+        read_joint_recording(tmp_path / 'b', window=(0.0, 20.5))

@@ -98,7 +98,10 @@ def read_joint_recording(bag_path: str | Path, joints: list[str] | None = None,
         t0, t1 = float(window[0]), float(window[1])
         if not (0 <= t0 < t1):
             raise BagError(f'window {window} is not an increasing pair of non-negative seconds')
-        if t1 > t[-1] + 1e-6:
+        # A window [0, 20] on 2000 samples at 100 Hz (last stamp 19.99 s) is the whole recording:
+        # allow one sample period of slack at the end, no more.
+        period = float(np.median(np.diff(t))) if k > 1 else 0.0
+        if t1 > t[-1] + 1.01 * period + 1e-9:
             raise BagError(f'bag {bag_path} covers {t[-1]:.3f} s of {JOINT_STATES}, '
                            f'shorter than the window end {t1} s')
         sel = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)

@@ -63,7 +63,7 @@ class BuiltModel:
 
 
 def _fmt(values) -> str:
-    return ' '.join(f'{float(v):.17g}' for v in np.ravel(values))
+    return ' '.join(repr(float(v)) for v in np.ravel(values))   # shortest round-trip text
 
 
 def _set_pose(elem, tf: np.ndarray):

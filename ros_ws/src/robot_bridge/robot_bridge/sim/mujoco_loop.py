@@ -30,6 +30,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -350,7 +351,13 @@ def simulate_loop_experiment(experiment: dict | str | Path | ExperimentSpec, dur
     # static equilibrium at the start
     sim.set_state(q_start)
     initial_residual = sim.weld_residual() if sim.has_loop else (0.0, 0.0)
+    if initial_residual[0] > 1e-3:
+        warnings.warn(f'with the given start pose the undeformed loop misses the clamp by {initial_residual[0]:.3f} m; '
+                      'the welds pull it shut while settling (leave motion.q_start unset to start exactly closed)')
     info = sim.settle(q_start, controller, settling, effects.loop_damping_nms)
+    if not info['settled']:
+        warnings.warn(f'not still after {settling.max_time_s} s of settling (max speed '
+                      f'{info["settle_max_speed_rad_s"]:.2g} rad/s): the recording does not start at rest')
 
     # run, keeping every timestep's state and torque (for delays) and the ground truth at the samples
     m, d = sim.model, sim.data
@@ -462,14 +469,14 @@ def main(argv=None) -> int:
     try:
         if Path(args.out).exists():
             raise ValueError(f'{args.out} exists; choose a new bag directory')
+        numerics = Numerics(timestep_s=args.timestep, integrator=args.integrator)
         rec = simulate_loop_experiment(
             args.experiment, args.duration, args.k_theta, args.k_phi, seed=args.seed,
             noise=MeasurementNoise(args.noise_position, args.noise_velocity, args.noise_effort), effects=effects,
-            motion=motion, rate_hz=args.rate, numerics=Numerics(timestep_s=args.timestep, integrator=args.integrator),
-            with_object=not args.no_object)
+            motion=motion, rate_hz=args.rate, numerics=numerics, with_object=not args.no_object)
         if args.dump_mjcf:
             sim = LoopSimulator(load_experiment(args.experiment), args.k_theta, args.k_phi, effects.passive(),
-                                with_object=not args.no_object)
+                                numerics, with_object=not args.no_object)
             Path(args.dump_mjcf).write_text(sim.built.xml)
     except ValueError as exc:
         print(f'mujoco_loop: error: {exc}', file=sys.stderr)

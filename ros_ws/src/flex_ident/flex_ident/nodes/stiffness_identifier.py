@@ -1,0 +1,276 @@
+"""stiffness_identifier: identify a flexible object's stiffness from a recorded bag, on request.
+
+Requests (one job at a time; a request that arrives while a job runs is refused with a WARN status)
+  /identification/request (std_msgs/String)  JSON {"bag": ..., "experiment": ..., "out": ..., "method": ...};
+                                             keys left out take the parameter values
+  ~/run (std_srvs/Trigger)                   run with the current parameters; answers at once (the job runs in a
+                                             worker thread and reports on the topics below)
+Parameters
+  bag (string)          rosbag2 directory (CONTRACTS.md section 1)
+  experiment (string)   experiment YAML (CONTRACTS.md section 2)
+  out (string)          output directory for report.json and plots (default: identification_<bag name>)
+  method (string)       optimizer passed to the identification (default 'lm')
+  run_on_start (bool)   start a job with the parameters as soon as the node is up (default false)
+Publishes
+  /identification/status (diagnostic_msgs/DiagnosticArray)  progress (stage, iteration, cost, fraction) while a job
+                        runs, a 1 Hz heartbeat otherwise; level ERROR when a job fails
+  /identification/result (std_msgs/String, reliable, transient local, depth 1: latched)  the report JSON
+                        (CONTRACTS.md section 3), or {"error": ..., "error_type": ..., "request": ...}
+
+The algorithm is flex_ident.identification.identify.run_identification; this node only moves requests and results.
+"""
+from __future__ import annotations
+
+import json
+import threading
+import time
+import traceback
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+
+from robot_bridge.nodes.common import run_node
+
+NODE_NAME = 'stiffness_identifier'
+REQUEST_TOPIC = '/identification/request'
+STATUS_TOPIC = '/identification/status'
+RESULT_TOPIC = '/identification/result'
+PROGRESS_MIN_PERIOD_S = 0.1
+HEARTBEAT_PERIOD_S = 1.0
+
+LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def run_identification(bag_path, experiment_path, out_dir, method='lm', progress=None) -> dict:
+    """The identification (imported when first used, so the node starts even if it is unavailable)."""
+    from flex_ident.identification.identify import run_identification as identify
+    return identify(bag_path, experiment_path, out_dir, method=method, progress=progress)
+
+
+class RequestError(ValueError):
+    """A request the node cannot run (malformed JSON, missing bag or experiment)."""
+
+
+@dataclass
+class IdentificationRequest:
+    bag: str
+    experiment: str
+    out: str
+    method: str
+
+    @classmethod
+    def from_values(cls, bag, experiment, out, method) -> 'IdentificationRequest':
+        bag, experiment = str(bag or '').strip(), str(experiment or '').strip()
+        if not bag:
+            raise RequestError('no bag given (request key "bag" or parameter bag)')
+        if not experiment:
+            raise RequestError('no experiment given (request key "experiment" or parameter experiment)')
+        out = str(out or '').strip() or f'identification_{Path(bag.rstrip("/")).name}'
+        return cls(bag=bag, experiment=experiment, out=out, method=str(method or 'lm').strip() or 'lm')
+
+
+def _json_default(value):
+    """numpy scalars/arrays and paths in a report -> JSON."""
+    if hasattr(value, 'tolist'):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f'{type(value).__name__} is not JSON serializable')
+
+
+class StiffnessIdentifier(Node):
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.declare_parameter('bag', '', ParameterDescriptor(description='rosbag2 directory to identify from'))
+        self.declare_parameter('experiment', '', ParameterDescriptor(description='experiment YAML'))
+        self.declare_parameter('out', '', ParameterDescriptor(
+            description='output directory (default: identification_<bag name>)'))
+        self.declare_parameter('method', 'lm', ParameterDescriptor(description='optimizer, e.g. lm'))
+        run_on_start = self.declare_parameter('run_on_start', False, ParameterDescriptor(
+            description='start a job with the parameters once the node is up')).value
+        self._lock = threading.Lock()
+        self._worker: threading.Thread | None = None
+        self._closed = False
+        self._job_id = 0
+        self._state = {'state': 'idle'}
+        self._last_progress_time = 0.0
+        self._last_stage = None
+        self.status_pub = self.create_publisher(DiagnosticArray, STATUS_TOPIC, RELIABLE)
+        self.result_pub = self.create_publisher(String, RESULT_TOPIC, LATCHED)
+        self.request_sub = self.create_subscription(String, REQUEST_TOPIC, self._on_request, RELIABLE)
+        self.run_srv = self.create_service(Trigger, '~/run', self._on_run)
+        self._heartbeat = self.create_timer(HEARTBEAT_PERIOD_S, self._publish_heartbeat)
+        self._start_timer = self.create_timer(0.0, self._start_from_parameters) if run_on_start else None
+        self.get_logger().info(f'ready: publish JSON on {REQUEST_TOPIC} or call '
+                               f'{self.get_fully_qualified_name()}/run')
+
+    # -- requests ------------------------------------------------------------------------------------------------
+    @property
+    def busy(self) -> bool:
+        with self._lock:
+            return self._worker is not None and self._worker.is_alive()
+
+    def _parameter_values(self) -> dict:
+        return {k: self.get_parameter(k).value for k in ('bag', 'experiment', 'out', 'method')}
+
+    def _on_request(self, msg: String):
+        try:
+            data = json.loads(msg.data) if msg.data.strip() else {}
+            if not isinstance(data, dict):
+                raise RequestError(f'request must be a JSON object, got {type(data).__name__}')
+            values = self._parameter_values()
+            unknown = set(data) - set(values)
+            if unknown:
+                self.get_logger().warn(f'ignoring unknown request keys {sorted(unknown)}')
+            values.update({k: v for k, v in data.items() if k in values and v is not None})
+            request = IdentificationRequest.from_values(**values)
+        except (json.JSONDecodeError, RequestError) as exc:
+            self._report_error(exc, {'raw': msg.data})
+            return
+        self.submit(request)
+
+    def _on_run(self, _request, response):
+        try:
+            request = IdentificationRequest.from_values(**self._parameter_values())
+        except RequestError as exc:
+            self._report_error(exc, self._parameter_values())
+            response.success, response.message = False, str(exc)
+            return response
+        started, message = self.submit(request)
+        response.success, response.message = started, message
+        return response
+
+    def _start_from_parameters(self):
+        self._start_timer.cancel()
+        try:
+            self.submit(IdentificationRequest.from_values(**self._parameter_values()))
+        except RequestError as exc:
+            self._report_error(exc, self._parameter_values())
+
+    def submit(self, request: IdentificationRequest) -> tuple[bool, str]:
+        """Start a job in the worker thread unless one is running. Returns (started, message)."""
+        with self._lock:
+            if self._closed:
+                return False, 'node is shutting down'
+            if self._worker is not None and self._worker.is_alive():
+                message = f'busy with job {self._job_id}; request for {request.bag} refused'
+                self._publish_status(DiagnosticStatus.WARN, message, self._state)
+                self.get_logger().warn(message)
+                return False, message
+            self._job_id += 1
+            job_id = self._job_id
+            self._state = {'state': 'running', 'job_id': job_id, **asdict(request)}
+            self._last_stage = None
+            message = f'job {job_id} started: {request.bag} with {request.experiment} -> {request.out}'
+            self.get_logger().info(message)
+            self._worker = threading.Thread(target=self._run_job, args=(job_id, request), daemon=True,
+                                            name=f'identification_job_{job_id}')
+            self._worker.start()
+        return True, message
+
+    # -- the job (worker thread) ---------------------------------------------------------------------------------
+    def _run_job(self, job_id: int, request: IdentificationRequest):
+        t0 = time.monotonic()
+        self._publish_status(DiagnosticStatus.OK, f'job {job_id} started', self._state)
+
+        def progress(info: dict):
+            self._on_progress(job_id, t0, info)
+
+        try:
+            report = run_identification(request.bag, request.experiment, request.out, method=request.method,
+                                        progress=progress)
+            if not isinstance(report, dict):
+                raise TypeError(f'identification returned {type(report).__name__}, expected a dict')
+            text = json.dumps(report, default=_json_default)
+        except Exception as exc:   # noqa: BLE001 - a failed job is reported, never crashes the node
+            if not isinstance(exc, ValueError):
+                self.get_logger().error(''.join(traceback.format_exception(exc)))
+            self._report_error(exc, asdict(request), job_id=job_id)
+            with self._lock:
+                self._state = {'state': 'idle', 'last_job': job_id, 'last_outcome': 'error'}
+            return
+        elapsed = time.monotonic() - t0
+        self._publish(self.result_pub, String(data=text))
+        summary = {'state': 'done', 'job_id': job_id, 'elapsed_s': round(elapsed, 3), **asdict(request)}
+        params = report.get('parameters')
+        if isinstance(params, dict):
+            summary.update({f'parameter.{k}': v for k, v in params.items()})
+        self._publish_status(DiagnosticStatus.OK, f'job {job_id} done in {elapsed:.1f} s', summary)
+        self.get_logger().info(f'job {job_id} done in {elapsed:.1f} s: {params}')
+        with self._lock:
+            self._state = {'state': 'idle', 'last_job': job_id, 'last_outcome': 'done'}
+
+    def _on_progress(self, job_id: int, t0: float, info: dict):
+        now = time.monotonic()
+        stage = info.get('stage') if isinstance(info, dict) else None
+        with self._lock:
+            self._state = {'state': 'running', 'job_id': job_id, **self._request_fields(),
+                           **(info if isinstance(info, dict) else {'progress': info})}
+            if stage == self._last_stage and now - self._last_progress_time < PROGRESS_MIN_PERIOD_S:
+                return
+            self._last_stage, self._last_progress_time = stage, now
+            values = dict(self._state, elapsed_s=round(now - t0, 3))
+        self._publish_status(DiagnosticStatus.OK, f'job {job_id}: {stage or "running"}', values)
+
+    def _request_fields(self) -> dict:
+        return {k: self._state[k] for k in ('bag', 'experiment', 'out', 'method') if k in self._state}
+
+    # -- publishing ----------------------------------------------------------------------------------------------
+    def _report_error(self, exc: Exception, request: dict, job_id: int | None = None):
+        message = f'{type(exc).__name__}: {exc}'
+        prefix = f'job {job_id} failed: ' if job_id is not None else 'request refused: '
+        self.get_logger().error(prefix + message)
+        self._publish_status(DiagnosticStatus.ERROR, prefix + message,
+                             {'state': 'error', 'job_id': job_id if job_id is not None else '', **request})
+        result = {'error': str(exc), 'error_type': type(exc).__name__, 'request': request}
+        self._publish(self.result_pub, String(data=json.dumps(result, default=_json_default)))
+
+    def _publish_heartbeat(self):
+        if self.busy:
+            return   # progress messages carry the state while a job runs
+        with self._lock:
+            values = dict(self._state)
+        self._publish_status(DiagnosticStatus.OK, 'idle', values)
+
+    def _publish_status(self, level: bytes, message: str, values: dict):
+        status = DiagnosticStatus(level=level, name=self.get_fully_qualified_name(), message=message,
+                                  hardware_id='', values=[KeyValue(key=str(k), value=str(v))
+                                                          for k, v in values.items()])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._publish(self.status_pub, msg)
+
+    def _publish(self, publisher, msg):
+        if self._closed:
+            return
+        try:
+            publisher.publish(msg)
+        except Exception as exc:   # noqa: BLE001 - e.g. the context shut down under a finishing job
+            self.get_logger().debug(f'could not publish on {publisher.topic_name}: {exc}')
+
+    def close(self):
+        """Stop accepting requests; a running job is left to finish in its daemon thread (it cannot be cancelled)."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            running = self._worker is not None and self._worker.is_alive()
+        if running:
+            self.get_logger().warn(f'shutting down while job {self._job_id} runs; its result will not be published')
+
+
+def main(args=None):
+    return run_node(StiffnessIdentifier, args=args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
