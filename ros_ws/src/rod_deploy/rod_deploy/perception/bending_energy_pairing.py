@@ -12,10 +12,16 @@ interior vertices (discrete elastic rods, Bergou et al. 2008):
 phi_1 the turn from t_i onto the chord a_j - a_i, phi_2 the turn from the chord onto -t_j. The pairing of
 all branches with the least total energy is chosen (every perfect matching is enumerated for up to eight
 branches; with an odd count one branch is left to end at the crossing, e.g. a rod end touching another
-rod). Units: pixels.
+rod). Where colour is known, joining two branches whose colours clearly differ (CIELAB a*b* distance above
+``min_colour_separation``) costs ``colour_penalty`` more, about a 150-degree turn: rods do not change
+colour in a crossing, while the skeleton of a shallow or tangential crossing can make the wrong pairing the
+straighter one. Joining the two ends of one chain into a closed loop costs ``loop_penalty`` more: where a
+stroke ends tangentially on itself (a letter b, a loop closing onto its lead-in) both pairings are
+straight, and the open curve is the likelier reading. Units: pixels.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from itertools import combinations
 
@@ -34,6 +40,7 @@ class Branch:
     anchor: np.ndarray        # (row, col) [px] where a connector through the crossing starts
     anchor_index: int         # index of ``anchor`` in the branch's points ordered away from the crossing
     tangent: np.ndarray       # unit (drow, dcol) pointing into the crossing
+    colour: np.ndarray | None = None   # CIELAB (a*, b*) of the branch beyond the anchor, if known
 
 
 @dataclass
@@ -105,22 +112,22 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
     ends of a short loop keep distinct anchors); the tangent is the principal direction of the next
     ``fit_px`` of arc, oriented towards the crossing.
     """
+    points = points[:int(2 * (skip_px + fit_px)) + 3]           # only the start matters (1 px steps)
     seg = np.hypot(*np.diff(points, axis=0).T) if len(points) > 1 else np.zeros(0)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     total = s[-1]
     skip = min(skip_px, max_fraction * total)
-    i0 = int(np.searchsorted(s, skip))
-    i0 = min(i0, len(points) - 1)
-    i1 = int(np.searchsorted(s, s[i0] + fit_px))
-    i1 = min(max(i1, i0 + 1), len(points) - 1)
+    i0 = min(int(np.searchsorted(s, skip)), len(points) - 1)
+    i1 = min(max(int(np.searchsorted(s, s[i0] + fit_px)), i0 + 1), len(points) - 1)
     if i1 <= i0:    # a branch of one point: direction from the crossing
         i0 = max(0, len(points) - 1)
         d = points[0] - points[-1] if len(points) > 1 else np.array([0.0, 1.0])
     else:
         section = points[i0:i1 + 1]
         centred = section - section.mean(axis=0)
-        _, _, vt = np.linalg.svd(centred, full_matrices=False)
-        d = vt[0]
+        cov = centred.T @ centred
+        evals, evecs = np.linalg.eigh(cov)
+        d = evecs[:, -1]
         if np.dot(d, points[i0] - points[i1]) < 0:
             d = -d
     norm = np.linalg.norm(d)
@@ -128,34 +135,46 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
     return i0, d
 
 
-def attach_branch_geometry(graph: SkeletonGraph, crossing: Crossing, skip_px: float, fit_px: float):
-    """Replace ``crossing.branches`` (edge, side) tuples by :class:`Branch` objects."""
-    out = []
+def attach_branch_geometry(graph: SkeletonGraph, crossing: Crossing, skip_px: float, fit_px: float,
+                           colour_of=None):
+    """Replace ``crossing.branches`` (edge, side) tuples by :class:`Branch` objects; ``colour_of(points)``
+    (optional) gives the colour of a stretch of points."""
+    out, stretches = [], []
     for eid, side in crossing.branches:
         pts = graph.branch_points(eid, side)
         i0, t = branch_geometry(pts, skip_px, fit_px)
+        stretch = pts[i0:i0 + int(np.ceil(fit_px)) + 1]
+        stretches.append(stretch if len(stretch) >= 3 else stretch[:0])
         out.append(Branch(eid, side, pts[i0].copy(), i0, t))
+    if colour_of is not None:
+        colours = (colour_of.batch(stretches) if hasattr(colour_of, 'batch')
+                   else [colour_of(p) if len(p) else None for p in stretches])
+        for b, c in zip(out, colours):
+            b.colour = c
     crossing.branches = out
 
 
-def _turn(a: np.ndarray, b: np.ndarray) -> float:
-    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+def _turn(ax: float, ay: float, bx: float, by: float) -> float:
+    """Angle [rad] between two 2-vectors (plain floats: this runs for every branch pair)."""
+    na, nb = math.hypot(ax, ay), math.hypot(bx, by)
     if na == 0 or nb == 0:
         return 0.0
-    c = float(np.clip(np.dot(a, b) / (na * nb), -1.0, 1.0))
-    return min(float(np.arccos(c)), MAX_TURN_RAD)
+    c = max(-1.0, min(1.0, (ax * bx + ay * by) / (na * nb)))
+    return min(math.acos(c), MAX_TURN_RAD)
 
 
 def pair_energy(bi: Branch, bj: Branch) -> float:
-    """Discrete bending energy [1/px] of joining branch ``bi`` to branch ``bj`` through the crossing."""
-    chord = bj.anchor - bi.anchor
-    d = float(np.linalg.norm(chord))
+    """Discrete bending energy [1/px] of joining branch ``bi`` to branch ``bj`` through the crossing
+    (the module docstring's E_ij)."""
+    ti, tj = bi.tangent, bj.tangent
+    cx, cy = float(bj.anchor[0] - bi.anchor[0]), float(bj.anchor[1] - bi.anchor[1])
+    d = math.hypot(cx, cy)
     if d < 1e-9:
-        phis = [_turn(bi.tangent, -bj.tangent)]
+        phis = [_turn(ti[0], ti[1], -tj[0], -tj[1])]
         d = 1.0
     else:
-        phis = [_turn(bi.tangent, chord), _turn(chord, -bj.tangent)]
-    return sum((2.0 * np.tan(phi / 2.0)) ** 2 for phi in phis) / d
+        phis = [_turn(ti[0], ti[1], cx, cy), _turn(cx, cy, -tj[0], -tj[1])]
+    return sum((2.0 * math.tan(phi / 2.0)) ** 2 for phi in phis) / d
 
 
 def _perfect_matchings(items):
@@ -168,15 +187,25 @@ def _perfect_matchings(items):
             yield [(first, rest[k])] + m
 
 
-def minimal_energy_pairing(branches: list, max_exhaustive: int = 8):
-    """Pairs (i, j) of branch indices with the least total bending energy, and that energy.
-    With an odd number of branches one is left unpaired."""
+def colours_differ(ci, cj, min_separation: float) -> bool:
+    return ci is not None and cj is not None and float(np.linalg.norm(ci - cj)) > min_separation
+
+
+def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penalty: float = 4.0,
+                           min_colour_separation: float = 12.0, loop_penalty: float = 0.5):
+    """Pairs (i, j) of branch indices with the least total energy (bending plus colour penalty), and that
+    energy. With an odd number of branches one is left unpaired."""
     n = len(branches)
     if n < 2:
         return [], 0.0
     energy = np.full((n, n), np.inf)
     for i, j in combinations(range(n), 2):
-        energy[i, j] = energy[j, i] = pair_energy(branches[i], branches[j])
+        e = pair_energy(branches[i], branches[j])
+        if colours_differ(branches[i].colour, branches[j].colour, min_colour_separation):
+            e += colour_penalty
+        if branches[i].edge == branches[j].edge:
+            e += loop_penalty
+        energy[i, j] = energy[j, i] = e
     if n <= max_exhaustive:
         best, best_e = [], np.inf
         leave_out = [None] if n % 2 == 0 else list(range(n))
@@ -198,9 +227,10 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8):
     return pairs, float(total)
 
 
-def pair_crossings(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px: float):
+def pair_crossings(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px: float, colour_of=None,
+                   min_colour_separation: float = 12.0):
     """Attach branch geometry to every crossing and pair its branches by minimal bending energy."""
     for c in crossings:
-        attach_branch_geometry(graph, c, skip_px, fit_px)
-        c.pairs, c.energy = minimal_energy_pairing(c.branches)
+        attach_branch_geometry(graph, c, skip_px, fit_px, colour_of)
+        c.pairs, c.energy = minimal_energy_pairing(c.branches, min_colour_separation=min_colour_separation)
     return crossings

@@ -2,14 +2,15 @@
 
 A skeleton is a chain of pixel centres, up to half a pixel off the true centre line and shortened or
 lengthened at the ends. For each point of a traced path the foreground evidence is sampled (bilinearly)
-across the path, the two boundary crossings at ``edge_fraction`` of the local peak are found to sub-pixel
-precision, and the point moves to their midpoint; the distance between them is the local width.
+across the path, the two edges (steepest change of evidence, found to sub-pixel precision) are located,
+and the point moves to their midpoint; the distance between them is the local width.
 Points in crossings, where a second strand corrupts the profile, and points whose width is implausible
 keep their skeleton position (their correction is interpolated from the neighbours). The path is then
 smoothed along its arc length by a Gaussian (odd reflection at open ends keeps the ends and their
-tangents) and each open end is placed one half-width inside the object's boundary along its tangent,
-i.e. at the centre of a round pen tip or of a round-capped rod end; an end that runs off the image
-stops at the image border. Units: pixels, points (row, col).
+tangents). Each open end loses its last 0.6 widths (thinning bends them towards a corner of a flat end)
+and is extended along the tangent of the stretch before to one half-width inside the object's boundary,
+i.e. to the centre of a round pen tip or of a round-capped rod end; an end that runs off the image stops
+at the image border. Units: pixels, points (row, col).
 """
 from __future__ import annotations
 
@@ -25,7 +26,8 @@ class RefinedPath:
     points: np.ndarray          # (n, 2) (row, col) [px]
     width_px: float             # median measured width (nan if never measured)
     closed: bool
-    widths: np.ndarray          # per-point measured width [px], nan where not measured
+    widths: np.ndarray          # measured width [px] per point of refine()'s output (nan: not measured);
+                                # place_ends() keeps it as is
 
 
 def arc_length(points: np.ndarray) -> np.ndarray:
@@ -89,49 +91,76 @@ def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray,
     return prof, offsets
 
 
-def edge_crossings(profiles: np.ndarray, offsets: np.ndarray, edge_fraction: float, floor: float,
-                   core_px: float):
-    """Sub-pixel offsets of the left and right boundary in each profile (nan if not found).
-
-    The level is ``edge_fraction`` of the profile's peak within ``core_px`` of the path (at least
-    ``floor``); the boundaries are the nearest crossings of that level on either side of the path.
-    """
+def level_crossings(profiles: np.ndarray, offsets: np.ndarray, fraction: float, floor: float,
+                    core_px: float):
+    """Sub-pixel offsets of the nearest crossings, left and right of the path, of ``fraction`` of each
+    profile's peak within ``core_px`` of the path (at least ``floor``); nan where there is none."""
     k = profiles.shape[1]
     c = k // 2
     core = np.abs(offsets) <= core_px
     peak = profiles[:, core].max(axis=1)
-    level = np.maximum(edge_fraction * peak, floor)
+    level = np.maximum(fraction * peak, floor)
     below = profiles < level[:, None]
-    n = len(profiles)
-    idx = np.arange(n)
-    # left: last index <= c that is below the level
+    idx = np.arange(len(profiles))
     left_below = below[:, :c + 1]
-    has_l = left_below.any(axis=1)
-    jl = c - np.argmax(left_below[:, ::-1], axis=1)          # below
-    # right: first index >= c that is below
+    jl = c - np.argmax(left_below[:, ::-1], axis=1)          # last index <= c below the level
     right_below = below[:, c:]
-    has_r = right_below.any(axis=1)
-    jr = c + np.argmax(right_below, axis=1)                  # below
-    valid = has_l & has_r & (jl < c) & (jr > c)
-    jl1 = np.clip(jl + 1, 0, k - 1)
-    jr0 = np.clip(jr - 1, 0, k - 1)
+    jr = c + np.argmax(right_below, axis=1)                  # first index >= c below the level
+    valid = left_below.any(axis=1) & right_below.any(axis=1) & (jl < c) & (jr > c)
     step = offsets[1] - offsets[0]
 
-    def interp(j_lo, j_hi, sign):
+    def interp(j_lo, j_hi):
         p_lo, p_hi = profiles[idx, j_lo], profiles[idx, j_hi]
         denom = p_hi - p_lo
         denom[np.abs(denom) < 1e-6] = 1e-6
         return offsets[j_lo] + step * (level - p_lo) / denom
 
-    o_l = interp(jl, jl1, 1)
-    o_r = interp(jr0, jr, -1)
+    o_l = interp(jl, np.clip(jl + 1, 0, k - 1))
+    o_r = interp(np.clip(jr - 1, 0, k - 1), jr)
     o_l[~valid] = np.nan
     o_r[~valid] = np.nan
-    return o_l, o_r, level
+    return o_l, o_r
+
+
+def _parabolic_peak(g: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Sub-sample offset of the maximum of each row of ``g`` near index ``j`` (parabola through 3)."""
+    idx = np.arange(len(g))
+    jm = np.clip(j - 1, 0, g.shape[1] - 1)
+    jp = np.clip(j + 1, 0, g.shape[1] - 1)
+    a, b, c = g[idx, jm], g[idx, j], g[idx, jp]
+    denom = a - 2 * b + c
+    with np.errstate(invalid='ignore', divide='ignore'):
+        d = np.where(np.abs(denom) > 1e-9, 0.5 * (a - c) / denom, 0.0)
+    return np.clip(d, -0.5, 0.5)
+
+
+def edge_positions(profiles: np.ndarray, offsets: np.ndarray, floor: float, core_px: float):
+    """Sub-pixel offsets of the left and right edges of the object in each profile: the points of
+    steepest evidence change (the physical boundary for a flat ink stroke, whose half-maximum it is, and
+    for a shaded round rod, whose dim flanks a fixed fraction of the peak would cut off), searched between
+    the crossings of 15 % and 60 % of the peak. nan where an edge is not found."""
+    out_l, out_r = level_crossings(profiles, offsets, 0.15, 0.5 * floor, core_px)
+    in_l, in_r = level_crossings(profiles, offsets, 0.6, floor, core_px)
+    g = np.gradient(profiles, axis=1)
+    o = offsets[None, :]
+    step = offsets[1] - offsets[0]
+    win_l = (o >= out_l[:, None] - step) & (o <= in_l[:, None] + step)
+    win_r = (o >= in_r[:, None] - step) & (o <= out_r[:, None] + step)
+    gl = np.where(win_l, g, -np.inf)
+    gr = np.where(win_r, -g, -np.inf)
+    jl = np.argmax(gl, axis=1)
+    jr = np.argmax(gr, axis=1)
+    e_l = offsets[jl] + step * _parabolic_peak(np.where(np.isfinite(gl), gl, g), jl)
+    e_r = offsets[jr] + step * _parabolic_peak(np.where(np.isfinite(gr), gr, -g), jr)
+    bad = ~(np.isfinite(out_l) & np.isfinite(out_r) & np.isfinite(in_l) & np.isfinite(in_r))
+    bad |= ~win_l.any(axis=1) | ~win_r.any(axis=1)
+    e_l[bad] = np.nan
+    e_r[bad] = np.nan
+    return e_l, e_r
 
 
 def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_px: float,
-           edge_fraction: float, floor: float, exclude=None, sigma_px: float = 1.5) -> RefinedPath:
+           floor: float, exclude=None, sigma_px: float = 1.5) -> RefinedPath:
     """Edge-centred, smoothed path at 1 px spacing (see module docstring); ``exclude(points)`` returns a
     bool mask of points whose profile must not be trusted, e.g. inside crossings."""
     pts = resample(points, 1.0)
@@ -140,21 +169,26 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     pts = smooth(pts, 1.0, closed)
     t = tangents(smooth(pts, 2.0, closed), closed)
     normals = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    half_span = 1.2 * approx_width_px + 3.0
-    prof, offsets = edge_profiles(evidence, pts, normals, half_span)
-    o_l, o_r, _ = edge_crossings(prof, offsets, edge_fraction, floor, core_px=0.5 * approx_width_px + 1.0)
+    # profiles every second point (the correction is smooth along the path), both ends included
+    idx = np.arange(0, len(pts), 2)
+    if idx[-1] != len(pts) - 1:
+        idx = np.append(idx, len(pts) - 1)
+    half_span = 0.8 * approx_width_px + 3.0
+    prof, offsets = edge_profiles(evidence, pts[idx], normals[idx], half_span)
+    o_l, o_r = edge_positions(prof, offsets, floor, core_px=0.5 * approx_width_px + 1.0)
     width = o_r - o_l
     centre = 0.5 * (o_l + o_r)
     ok = np.isfinite(width)
     if exclude is not None:
-        ok &= ~exclude(pts)
+        ok &= ~exclude(pts[idx])
     if ok.sum() >= 3:
         w_med = float(np.median(width[ok]))
         ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
-    widths = np.where(ok, width, np.nan)
+    widths = np.full(len(pts), np.nan)
+    widths[idx[ok]] = width[ok]
     if ok.sum() >= 3:
         i = np.arange(len(pts))
-        delta = np.interp(i, i[ok], centre[ok])
+        delta = np.interp(i, idx[ok], centre[ok])
         delta = gaussian_filter1d(delta, 2.0, mode='wrap' if closed else 'nearest')
         pts = pts + delta[:, None] * normals
         w_obj = float(np.median(width[ok]))
@@ -166,8 +200,8 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     return RefinedPath(pts, w_obj, closed, widths)
 
 
-def place_ends(path: RefinedPath, evidence: np.ndarray, edge_fraction: float, floor: float,
-               half_width_px: float, tangent_px: float) -> RefinedPath:
+def place_ends(path: RefinedPath, evidence: np.ndarray, floor: float, half_width_px: float,
+               tangent_px: float) -> RefinedPath:
     """Move each open end to half a width inside the boundary met along the end tangent (or to the image
     border when the object runs off the image); extension along the tangent, trimming along the path."""
     if path.closed or len(path.points) < 3:
@@ -189,26 +223,32 @@ def place_ends(path: RefinedPath, evidence: np.ndarray, edge_fraction: float, fl
         t = p[-1] - p[j]
         nt = np.linalg.norm(t)
         if nt < 1e-9:
-            pts = p if end == 1 else p[::-1]
             continue
         t /= nt
-        reach = 2.0 * half_width_px + 4.0
+        reach = trim + 2.0 * half_width_px + 4.0
         steps = np.arange(0.0, reach + 1e-9, 0.25)
         ray = p[-1][None, :] + steps[:, None] * t[None, :]
         inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
         vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
-        level = max(edge_fraction * float(vals[: max(1, int(2 / 0.25))].max()), floor)
-        below = (vals < level) & inside
+        peak = float(vals[: max(1, int(2 / 0.25))].max())
+        below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
         if below.any():
-            k = int(np.argmax(below))
-            if k == 0:
-                continue
-            b = steps[k - 1] + 0.25 * (vals[k - 1] - level) / max(vals[k - 1] - vals[k], 1e-6)
-            target = b - half_width_px
-        else:                       # ran off the image while still on the object: stop at the border
-            k_out = int(np.argmin(inside)) if not inside.all() else len(steps)
-            target = steps[max(k_out - 1, 0)]
+            k15 = int(np.argmax(below))
+            if k15 == 0:            # the end is already outside: keep it where thinning left it
+                target = 0.0
+            else:                   # boundary: steepest fall between 60 % and 15 % of the peak
+                k60 = int(np.argmax(np.append(vals[:k15] < max(0.6 * peak, floor), True)))
+                g = -np.gradient(vals)
+                lo, hi = max(k60 - 1, 0), min(k15 + 1, len(vals) - 1)
+                k = lo + int(np.argmax(g[lo:hi + 1]))
+                d = _parabolic_peak(g[None, :], np.array([k]))[0]
+                b = steps[k] + 0.25 * d
+                target = b - half_width_px
+        elif not inside.all():      # ran off the image while still on the object: stop at the border
+            target = steps[int(np.argmin(inside)) - 1]
+        else:                       # no boundary within reach (a blob?): leave this end as it was
+            continue
         if target > 0.5:
             extra = np.arange(1.0, target + 1e-9, 1.0)
             if extra.size == 0 or extra[-1] < target - 1e-6:

@@ -2,12 +2,19 @@
 sub-pixel refinement.
 
  1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w;
- 2. skeleton (``skimage.morphology.skeletonize``) and its graph (:mod:`.skeleton_graph`); spurs shorter than
-    ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped;
+ 2. skeleton (``skimage.morphology.skeletonize``; of the mask at half resolution when strokes are at
+    least ``half_resolution_min_width_px`` wide) and its graph (:mod:`.skeleton_graph`); spurs shorter than
+    ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
+    objects whose centreline evidence has a median below the segmentation threshold (texture blobs that
+    only the local edge rule pulled into the mask);
  3. crossings (:mod:`.bending_energy_pairing`): junctions closer than ``merge_factor`` w, and pairs of
     three-way junctions closer than ``y_merge_factor`` w, form one crossing; branches paired by minimal
-    bending energy (anchors ``skip_factor`` w + 2 px out, tangents over 1.5 w);
- 4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths);
+    bending energy (anchors ``skip_factor`` w + 2 px out, tangents over 1.5 w), with a penalty for joining
+    branches of clearly different colour (``min_colour_separation``);
+ 4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths); ends
+    of different objects facing each other across at most ``max_gap_factor`` w are joined (a rod cut by
+    the shadow of the rod above it, a pen skip); an object whose colour changes for good along its length
+    is cut there (rods of different colours touching end to end);
  5. over/under at every crossing from colour where the strands differ (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary, arc-length resampling every ``step_px``.
@@ -27,12 +34,12 @@ import numpy as np
 
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
-from rod_deploy.perception.crossing_order import CrossingDecision, decide_crossings
+from rod_deploy.perception.crossing_order import colour_sampler, decide_crossings
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, as_bgr,
                                                 segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
-from rod_deploy.perception.traversal import trace_objects
+from rod_deploy.perception.traversal import join_gaps, split_at_colour_changes, trace_objects
 
 
 class PerceptionError(ValueError):
@@ -47,11 +54,13 @@ class PerceptionConfig:
     spur_factor: float = 1.2             # spurs shorter than spur_factor * w + 2 px are pruned
     min_length_factor: float = 4.0       # objects shorter than this many widths are dropped
     merge_factor: float = 0.75           # junctions joined by chains shorter than this * w: one crossing
-    y_merge_factor: float = 5.0          # three-way junction pairs joined by chains shorter than this * w
+    y_merge_factor: float = 8.0          # three-way junction pairs joined by chains shorter than this * w
     skip_factor: float = 0.75            # branch anchors this many widths (+ 2 px) out of the crossing
+    max_gap_factor: float = 3.0          # facing ends at most this many widths apart are joined (0: never)
     refine: bool = True                  # edge-centred sub-pixel refinement
     min_colour_separation: float = 12.0  # CIELAB a*b* difference needed to decide over/under
     max_pixels: int = 12_000_000         # larger images are processed downscaled
+    half_resolution_min_width_px: float = 9.0   # skeleton at half resolution for strokes this wide
 
     def __post_init__(self):
         if not self.step_px > 0:
@@ -111,19 +120,52 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     t1 = time.perf_counter()
     timings['segmentation'] = (t1 - t0) * 1e3
 
-    graph = build_skeleton_graph(skeleton_of(seg.mask))
+    # skeleton at half resolution for wide strokes (4x fewer pixels to thin and walk; the centreline is
+    # refined on the full-resolution evidence afterwards)
+    f = 2 if w >= config.half_resolution_min_width_px else 1
+    mask = seg.mask
+    if f == 2:
+        h2, w2 = mask.shape[0] // 2, mask.shape[1] // 2
+        mask = cv2.resize(mask[:2 * h2, :2 * w2].view(np.uint8) * np.uint8(255), (w2, h2),
+                          interpolation=cv2.INTER_AREA) >= 128
+    ws = w / f
+    graph = build_skeleton_graph(skeleton_of(mask))
     t2 = time.perf_counter()
     timings['skeleton'] = (t2 - t1) * 1e3
+
+    def to_full(p):                          # processing-scale skeleton pixels -> image pixels
+        return f * np.asarray(p) + 0.5 * (f - 1)
+
+    colour_full = colour_sampler(bgr)
+
+    def colour_of(points):
+        return colour_full(to_full(points))
+
+    colour_of.batch = lambda point_sets: colour_full.batch([to_full(p) for p in point_sets])
+
     min_length = max(config.min_length_factor * w, 8.0)
-    remove_small_parts(graph, min_length)
-    prune_spurs(graph, config.spur_factor * w + 2.0)
+    remove_small_parts(graph, min_length / f)
+    prune_spurs(graph, config.spur_factor * ws + 2.0)
     dissolve_pass_through_junctions(graph)
-    remove_small_parts(graph, min_length)
-    crossings = find_crossings(graph, config.merge_factor * w, config.y_merge_factor * w)
-    pair_crossings(graph, crossings, config.skip_factor * w + 2.0, 1.5 * w + 2.0)
-    traced = [o for o in trace_objects(graph, crossings) if o.length_px() >= min_length]
+    remove_small_parts(graph, min_length / f)
+    crossings = find_crossings(graph, config.merge_factor * ws, config.y_merge_factor * ws)
+    pair_crossings(graph, crossings, config.skip_factor * ws + 2.0, 1.5 * ws + 2.0, colour_of,
+                   config.min_colour_separation)
+    traced = trace_objects(graph, crossings)
+    traced, gaps = join_gaps(traced, ws, len(crossings), config.max_gap_factor, colour_of=colour_of,
+                             min_colour_separation=config.min_colour_separation)
+    for o in traced:
+        o.points = to_full(o.points)
+    traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
+    zones = [(to_full(c), f * r) for c, r in _crossing_zones(crossings, ws)]
+    zones += [(to_full(g.centre), f * (0.5 * g.length_px + 0.5 * ws)) for g in gaps]
+    traced = [o for o in traced if o.length_px() >= min_length]
     if not traced:
         raise PerceptionError(f'no stroke or rod found: every candidate is shorter than {min_length:.0f} px')
+    traced = [o for o in traced if _median_evidence(seg.evidence, o.points) >= seg.threshold]
+    if not traced:
+        raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
+                              'background along its length (texture?)')
     t3 = time.perf_counter()
     timings['graph'] = (t3 - t2) * 1e3
 
@@ -133,15 +175,13 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     evidence = seg.evidence.astype(np.float32)
     floor = 0.25 * seg.threshold
-    fraction = config.segmentation.edge_fraction
-    zones = _crossing_zones(crossings, w)
     objects = []
     for obj in traced:
         if config.refine:
-            refined = cl.refine(obj.points, obj.closed, evidence, w, fraction, floor,
+            refined = cl.refine(obj.points, obj.closed, evidence, w, floor,
                                 exclude=lambda p: _in_zones(p, zones), sigma_px=config.smoothing_sigma_px)
             width = refined.width_px if np.isfinite(refined.width_px) else w
-            refined = cl.place_ends(refined, evidence, fraction, floor, 0.5 * width, tangent_px=max(4.0, w))
+            refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
         else:
             pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
             width = w
@@ -156,6 +196,13 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         d.position = d.position / scale
     timings['total'] = (time.perf_counter() - t0) * 1e3
     return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
+
+
+def _median_evidence(evidence, points):
+    p = np.round(points).astype(int)
+    p[:, 0] = np.clip(p[:, 0], 0, evidence.shape[0] - 1)
+    p[:, 1] = np.clip(p[:, 1], 0, evidence.shape[1] - 1)
+    return float(np.median(evidence[p[:, 0], p[:, 1]]))
 
 
 def _crossing_zones(crossings, w):

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from skimage.morphology import skeletonize
 
 END = 'end'
@@ -24,7 +25,6 @@ JUNCTION = 'junction'
 
 # 8-neighbour offsets (drow, dcol)
 _OFFSETS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)], dtype=np.int64)
-_NEIGHBOUR_KERNEL = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], dtype=np.float32)
 
 
 @dataclass
@@ -47,9 +47,12 @@ class Edge:
         return self.u < 0
 
     def length_px(self) -> float:
-        if len(self.points) < 2:
-            return 0.0
-        return float(np.sum(np.hypot(*np.diff(self.points, axis=0).T)))
+        """Arc length [px] (cached: an edge's points never change)."""
+        if self._length is None:
+            self._length = 0.0 if len(self.points) < 2 else float(np.sum(np.hypot(*np.diff(self.points, axis=0).T)))
+        return self._length
+
+    _length: float | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass
@@ -109,59 +112,70 @@ def skeleton_of(mask: np.ndarray) -> np.ndarray:
 
 
 def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
-    """Turn a one-pixel-wide skeleton into a :class:`SkeletonGraph` (vectorised; one Python step per pixel)."""
+    """Turn a one-pixel-wide skeleton into a :class:`SkeletonGraph`.
+
+    Works on the skeleton pixels only (neighbours found by binary search in their sorted linear
+    indices), so the cost grows with the skeleton length, not the image size; one Python step per pixel
+    orders the chains."""
     sk = np.asarray(skeleton, dtype=bool)
     shape = sk.shape
-    pad = np.zeros((shape[0] + 2, shape[1] + 2), dtype=np.uint8)
-    pad[1:-1, 1:-1] = sk
-    counts = cv2.filter2D(pad, cv2.CV_8U, _NEIGHBOUR_KERNEL, borderType=cv2.BORDER_CONSTANT)
-    junction = (pad > 0) & (counts >= 3)
-    chain = (pad > 0) & ~junction
-
-    n_junc, junc_labels = cv2.connectedComponents(junction.astype(np.uint8), connectivity=8)
-    nodes: list = []
-    if n_junc > 1:
-        jr, jc = np.nonzero(junction)
-        lab = junc_labels[jr, jc]
-        cnt = np.bincount(lab, minlength=n_junc)
-        mr = np.bincount(lab, weights=jr, minlength=n_junc) / np.maximum(cnt, 1)
-        mc = np.bincount(lab, weights=jc, minlength=n_junc) / np.maximum(cnt, 1)
-        for k in range(1, n_junc):   # junction label k -> node k - 1
-            nodes.append(Node(JUNCTION, np.array([mr[k] - 1.0, mc[k] - 1.0])))
-
-    # index image of chain pixels and their (at most two) chain neighbours
-    cr, cc = np.nonzero(chain)
-    n = cr.size
-    edges: list = []
-    graph = SkeletonGraph(nodes, edges, shape)
+    flat = np.flatnonzero(sk)                   # (much faster than np.nonzero on a sparse bool image)
+    rows, cols = np.divmod(flat, shape[1])
+    graph = SkeletonGraph([], [], shape)
+    n = rows.size
     if n == 0:
         return graph
-    index = np.full(pad.shape, -1, dtype=np.int64)
-    index[cr, cc] = np.arange(n)
-    nb_r = cr[:, None] + _OFFSETS[:, 0]
-    nb_c = cc[:, None] + _OFFSETS[:, 1]
-    nb = index[nb_r, nb_c]                                   # (n, 8) chain neighbours, -1 = none
-    nbj = junc_labels[nb_r, nb_c]                            # (n, 8) adjacent junction labels, 0 = none
-    nb_sorted = np.sort(nb, axis=1)[:, ::-1]                 # valid indices first
-    n_nb = (nb >= 0).sum(axis=1)
+    width = shape[1] + 2
+    lin = (rows + 1).astype(np.int64) * width + (cols + 1)          # sorted (row-major order)
+    nb = np.full((n, 8), -1, dtype=np.int64)
+    for k, (dr, dc) in enumerate(_OFFSETS):
+        q = lin + dr * width + dc
+        pos = np.minimum(np.searchsorted(lin, q), n - 1)
+        nb[:, k] = np.where(lin[pos] == q, pos, -1)
+    valid = nb >= 0
+    count = valid.sum(axis=1)
+    junction = count >= 3
+
+    # junction pixels -> junction nodes (8-connected clusters)
+    jl = np.full(n, -1, dtype=np.int64)
+    jpix = np.flatnonzero(junction)
+    if jpix.size:
+        a_idx, k_idx = np.nonzero(valid[jpix])
+        src = jpix[a_idx]
+        dst = nb[jpix[a_idx], k_idx]
+        both = junction[dst]
+        adj = coo_matrix((np.ones(int(both.sum())), (src[both], dst[both])), shape=(n, n)).tocsr()
+        sub = adj[jpix][:, jpix]
+        n_nodes, lab = connected_components(sub, directed=False)
+        jl[jpix] = lab
+        cnt = np.bincount(lab, minlength=n_nodes)
+        mr = np.bincount(lab, weights=rows[jpix], minlength=n_nodes) / cnt
+        mc = np.bincount(lab, weights=cols[jpix], minlength=n_nodes) / cnt
+        for k in range(n_nodes):
+            graph.nodes.append(Node(JUNCTION, np.array([mr[k], mc[k]])))
+
+    chain = ~junction
+    nb_j = np.where(valid, junction[np.maximum(nb, 0)], False)
+    nb_chain = np.where(valid & ~nb_j, nb, -1)
+    nb_sorted = np.sort(nb_chain, axis=1)[:, ::-1]                # valid indices first
+    n_nb = (nb_chain >= 0).sum(axis=1)
     first = nb_sorted[:, 0].tolist()
     second = nb_sorted[:, 1].tolist()
-    touch = nbj.max(axis=1)                                  # one adjacent junction label (0 = none)
-    touch2 = np.where(nbj > 0, nbj, np.iinfo(np.int32).max).min(axis=1)   # another, if two differ
+    touched = np.where(nb_j, jl[np.maximum(nb, 0)], -1)
+    touch = touched.max(axis=1)                                    # an adjacent junction node (-1: none)
+    touch2 = np.where(touched >= 0, touched, np.iinfo(np.int64).max).min(axis=1)
 
-    visited = np.zeros(n, dtype=bool)
-    starts = np.flatnonzero(n_nb <= 1).tolist()
-    for s in starts:
+    visited = ~chain.copy()
+    for s in np.flatnonzero(chain & (n_nb <= 1)).tolist():
         if visited[s]:
             continue
         order = _walk(s, first, second, visited)
-        _add_chain(graph, order, cr, cc, n_nb, touch, touch2)
-    # what is left is closed loops
-    for s in np.flatnonzero(~visited).tolist():
+        _add_chain(graph, order, rows, cols, touch, touch2)
+    for s in np.flatnonzero(~visited).tolist():                  # what is left is closed loops
         if visited[s]:
             continue
         order = _walk(s, first, second, visited)
-        pts = np.stack([cr[order] - 1.0, cc[order] - 1.0], axis=1)
+        pts = np.stack([rows[order], cols[order]], axis=1).astype(np.float64)
         if len(order) > 2:
             pts = np.vstack([pts, pts[:1]])
         graph.add_edge(pts, -1, -1)
@@ -183,20 +197,17 @@ def _walk(start, first, second, visited):
         prev, cur = cur, nxt
 
 
-def _add_chain(graph, order, cr, cc, n_nb, touch, touch2):
+def _add_chain(graph, order, rows, cols, touch, touch2):
     """Add one open chain as an edge, creating end nodes where it touches no junction."""
     a, b = order[0], order[-1]
-    ja = int(touch[a])
-    jb = int(touch[b])
-    if a == b and touch2[a] != np.iinfo(np.int32).max and touch2[a] != ja:
+    ja, jb = int(touch[a]), int(touch[b])
+    if a == b and touch2[a] != np.iinfo(np.int64).max and touch2[a] != ja:
         jb = int(touch2[a])                                  # one-pixel bridge between two junctions
-    pts = np.stack([cr[order] - 1.0, cc[order] - 1.0], axis=1)
+    pts = np.stack([rows[order], cols[order]], axis=1).astype(np.float64)
     ends = []
-    for pix, j, at in ((a, ja, 0), (b, jb, -1)):
-        if j > 0:
-            node_id = j - 1
-            jpos = graph.nodes[node_id].position
-            ends.append((node_id, jpos))
+    for j, at in ((ja, 0), (jb, -1)):
+        if j >= 0:
+            ends.append((j, graph.nodes[j].position))
         else:
             graph.nodes.append(Node(END, pts[at].copy()))
             ends.append((len(graph.nodes) - 1, None))

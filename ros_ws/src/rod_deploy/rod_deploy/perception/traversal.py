@@ -5,6 +5,8 @@ leaves its branch at the anchor, follows a cubic Hermite connector (tangents fro
 anchor of the paired branch and continues there, until it reaches an end, an unpaired branch or its own
 start (closed loop). The shared chains inside a crossing (internal edges) belong to no object. Every pass
 through a crossing is recorded, so that the crossing's over/under order can be decided afterwards.
+:func:`join_gaps` then joins ends that face each other across a short gap: a rod passing under another
+often shows a dark seam (shadow, edge) on one side of the upper rod, which cuts it in the mask.
 Units: pixels, points (row, col).
 """
 from __future__ import annotations
@@ -13,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rod_deploy.perception.bending_energy_pairing import Crossing
+from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
 
@@ -134,3 +136,188 @@ def trace_objects(graph: SkeletonGraph, crossings: list) -> list:
         else:
             objects.append(walk(eid, 0, closed_possible=True))
     return objects
+
+
+@dataclass
+class GapJoin:
+    """Two object ends joined across a gap (an object passing under another one, whose shadow or edge
+    cuts it, or a pen stroke with a skip)."""
+    crossing: int            # id given to the gap, after the skeleton crossings
+    centre: np.ndarray       # (row, col) [px], middle of the connector
+    length_px: float
+
+
+def _end_geometry(points: np.ndarray, last: bool, skip_px: float, fit_px: float):
+    """Anchor index (counted from that end), anchor point and outward unit tangent at one end."""
+    q = points[::-1] if last else points
+    i0, t = branch_geometry(q, skip_px, fit_px)
+    return i0, q[i0], t
+
+
+def _reindex_passes(passes, n, reverse, offset, keep_lo, keep_hi):
+    out = []
+    for cid, a, b in passes:
+        if reverse:
+            a, b = n - 1 - b, n - 1 - a
+        if a < keep_lo or b > keep_hi:
+            continue
+        out.append((cid, a - keep_lo + offset, b - keep_lo + offset))
+    return out
+
+
+def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_factor: float = 3.0,
+              max_turn_rad: float = np.radians(30.0), colour_of=None, min_colour_separation: float = 12.0):
+    """Join pairs of open ends of different objects that face each other across a short gap.
+
+    An end qualifies when the gap (between the ends' anchors, ``0.75 w + 2`` px back from the ends, since a
+    trace ending at a junction bends into it) is at most ``max_gap_factor`` w and both end tangents point
+    along the gap within ``max_turn_rad`` and (if ``colour_of`` is given) their colours agree; the
+    straightest joins go first. A joined object
+    records the gap as a pass, and the object passing closest to the gap's middle (if any, within w)
+    records a pass there too, so that the over/under decision covers the occlusion.
+    Returns (objects, gap joins)."""
+    skip = 0.75 * width_px + 2.0
+    fit = 1.5 * width_px + 2.0
+    max_gap = max_gap_factor * width_px + 2.0 * skip
+    cos_max = np.cos(max_turn_rad)
+    objects = list(objects)
+    joins = []
+    while True:
+        ends, stretches = [], []
+        for oid, o in enumerate(objects):
+            if o.closed or o.length_px() < 3 * skip:
+                continue
+            for last in (False, True):
+                i0, p, t = _end_geometry(o.points, last, skip, fit)
+                q = o.points[::-1] if last else o.points
+                stretches.append(q[i0:i0 + int(np.ceil(fit)) + 1])
+                ends.append([oid, last, i0, p, t, None])
+        if colour_of is not None and ends:
+            colours = (colour_of.batch(stretches) if hasattr(colour_of, 'batch')
+                       else [colour_of(q) for q in stretches])
+            for e, c in zip(ends, colours):
+                e[5] = c
+        best = None
+        for i in range(len(ends)):
+            for j in range(i + 1, len(ends)):
+                oa, la, ia, pa, ta, ca_ = ends[i]
+                ob, lb, ib, pb, tb, cb_ = ends[j]
+                if oa == ob or colours_differ(ca_, cb_, min_colour_separation):
+                    continue
+                chord = pb - pa
+                d = float(np.linalg.norm(chord))
+                if d > max_gap or d < 1e-6:
+                    continue
+                u = chord / d
+                ca, cb = float(np.dot(ta, u)), float(np.dot(-tb, u))
+                if ca < cos_max or cb < cos_max:
+                    continue
+                cost = (1 - ca) + (1 - cb) + 0.01 * d / width_px
+                if best is None or cost < best[0]:
+                    best = (cost, ends[i], ends[j], d)
+        if best is None:
+            return objects, joins
+        _, (oa, la, ia, pa, ta, _), (ob, lb, ib, pb, tb, _), d = best
+        a, b = objects[oa], objects[ob]
+        na, nb = len(a.points), len(b.points)
+        pa_pts = a.points if la else a.points[::-1]
+        keep_a = na - ia
+        head = pa_pts[:keep_a]
+        pb_pts = b.points[::-1] if lb else b.points
+        tail = pb_pts[ib:]
+        conn = hermite_connector(head[-1], ta, tail[0], -tb)[1:-1]
+        cid = first_crossing_id + len(joins)
+        passes = _reindex_passes(a.passes, na, not la, 0, 0, keep_a - 1)
+        passes.append((cid, keep_a - 1, keep_a + len(conn)))
+        passes += _reindex_passes(b.passes, nb, lb, keep_a + len(conn), ib, nb - 1)
+        joined = TracedObject(np.vstack([head, conn, tail]), False, passes)
+        centre = 0.5 * (head[-1] + tail[0])
+        joins.append(GapJoin(cid, centre, d))
+        objects = [o for k, o in enumerate(objects) if k not in (oa, ob)] + [joined]
+        _mark_occluder(objects, len(objects) - 1, cid, centre, width_px)
+
+
+def _mark_occluder(objects, joined_id, cid, centre, width_px):
+    """Give the object passing closest to ``centre`` (within w) a pass through gap ``cid``."""
+    best = None
+    for oid, o in enumerate(objects):
+        d = np.hypot(o.points[:, 0] - centre[0], o.points[:, 1] - centre[1])
+        if oid == joined_id:        # the joined object itself may pass over its own gap elsewhere
+            for c, a, b in o.passes:
+                if c == cid:
+                    d[max(0, a - int(2 * width_px)):b + int(2 * width_px) + 1] = np.inf
+        k = int(np.argmin(d))
+        if d[k] <= width_px and (best is None or d[k] < best[0]):
+            best = (d[k], oid, k)
+    if best is None:
+        return
+    _, oid, k = best
+    half = int(np.ceil(width_px))
+    o = objects[oid]
+    o.passes.append((cid, max(0, k - half), min(len(o.points) - 1, k + half)))
+
+
+def split_at_colour_changes(objects: list, colours_at, width_px: float, min_separation: float,
+                            min_length_px: float, max_splits: int = 4) -> list:
+    """Cut objects where their colour changes for good: two rods of different colours touching end to
+    end, or end to side, leave one skeleton chain with no junction between them.
+
+    Colours (``colours_at(points)`` -> (n, 2) CIELAB a*b*) are taken every half width along the path,
+    leaving out the passes through crossings, where the upper strand's colour shows. A cut goes where the
+    mean colours of the ``4 w`` before and after differ most, if by more than 2.5 ``min_separation``,
+    both pieces are at least ``min_length_px`` long and each is of one colour over 80 % of its length."""
+    out = []
+    queue = list(objects)
+    splits = 0
+    while queue:
+        o = queue.pop(0)
+        cut = None if (o.closed or splits >= max_splits) else _colour_cut(o, colours_at, width_px, min_separation,
+                                                                           min_length_px)
+        if cut is None:
+            out.append(o)
+            continue
+        splits += 1
+        a = TracedObject(o.points[:cut + 1].copy(), False, [p for p in o.passes if p[2] <= cut])
+        b = TracedObject(o.points[cut:].copy(), False,
+                         [(c, i0 - cut, i1 - cut) for c, i0, i1 in o.passes if i1 > cut and i0 >= cut])
+        queue += [a, b]
+    return out
+
+
+def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
+    pts = o.points
+    if len(pts) < 8:
+        return None
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] < 2 * min_length_px:
+        return None
+    step = max(1.0, 0.5 * width_px)
+    idx = np.unique(np.searchsorted(s, np.arange(0.0, s[-1], step)).clip(0, len(pts) - 1))
+    keep = np.ones(len(idx), dtype=bool)
+    for _, i0, i1 in o.passes:                      # crossings show the upper strand's colour
+        keep &= ~((s[idx] >= s[i0] - width_px) & (s[idx] <= s[i1] + width_px))
+    idx = idx[keep]
+    win = max(3, int(round(4 * width_px / step)))
+    if len(idx) < 2 * win:
+        return None
+    col = colours_at(pts[idx])
+    cc = np.vstack([[0.0, 0.0], np.cumsum(col, axis=0)])
+    k = np.arange(win, len(idx) - win + 1)
+    m1 = (cc[k] - cc[k - win]) / win
+    m2 = (cc[k + win] - cc[k]) / win
+    d = np.linalg.norm(m1 - m2, axis=1)
+    cut_at = (idx[k - 1] + idx[k]) // 2             # between the last sample before and the first after
+    ok = (s[cut_at] >= min_length_px) & (s[-1] - s[cut_at] >= min_length_px)
+    if not ok.any():
+        return None
+    j = int(np.argmax(np.where(ok, d, -1.0)))
+    if d[j] < 2.5 * min_separation:
+        return None
+    # each piece must be one colour along (almost) all its length: not a tangle of several rods
+    split = k[j]
+    for part in (col[:split], col[split:]):
+        spread = np.linalg.norm(part - np.median(part, axis=0), axis=1)
+        if np.mean(spread < 1.5 * min_separation) < 0.8:
+            return None
+    return int(cut_at[j])

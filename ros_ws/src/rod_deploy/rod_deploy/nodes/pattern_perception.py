@@ -1,0 +1,218 @@
+"""pattern_perception: the deployment request image in, the pattern as ``nav_msgs/Path`` out.
+
+Subscribes ``/deploy_request`` (``sensor_msgs/Image``: rgb8, bgr8, mono8, rgba8, bgra8, mono16/16UC1;
+RELIABLE, depth 1, or the sensor-data QoS with ``best_effort_input``), perceives the strokes or rods in a
+worker thread (the subscription never waits for processing; a request arriving while one is processed
+replaces any queued one) and publishes ``/pattern`` (``nav_msgs/Path``, frame ``table``, RELIABLE +
+TRANSIENT_LOCAL, depth 1): the centreline of object ``object_index`` (default 0, the longest) in table
+metres, z = 0, each pose's yaw along the path. Several objects: the chosen one is published and the
+others are logged. A bad image (unknown encoding, wrong size, nothing found) is logged as an error.
+
+Parameters
+  m_per_px            (double)   table metres per pixel s (default 0.001)
+  origin_row          (double)   origin pixel row r0; < 0: the bottom row (default -1)
+  origin_col          (double)   origin pixel column c0 (default 0)
+  homography          (double[]) 9 numbers, row-major H of (x, y, 1) ~ H (col, row, 1); overrides the scale
+  step_px             (double)   point spacing along the path [px] (default 2)
+  object_index        (int)      object to publish (default 0)
+  best_effort_input   (bool)     subscribe with the sensor-data QoS (default false: RELIABLE)
+"""
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
+                       qos_profile_sensor_data)
+from sensor_msgs.msg import Image
+
+from rod_deploy.perception.pipeline import PerceptionConfig, PerceptionError, perceive
+from rod_deploy.perception.pixel_mapping import Homography, MappingError, ScaleOrigin
+
+CHANNELS = {'rgb8': 3, 'bgr8': 3, 'mono8': 1, '8UC1': 1, '8UC3': 3, 'rgba8': 4, 'bgra8': 4,
+            'mono16': 1, '16UC1': 1}
+
+
+def image_to_bgr(msg: Image) -> np.ndarray:
+    """uint8 BGR (or grey) array of a ``sensor_msgs/Image``; ValueError for what cannot be converted."""
+    enc = msg.encoding
+    if enc not in CHANNELS:
+        raise ValueError(f"unsupported image encoding '{enc}' (supported: {', '.join(CHANNELS)})")
+    c = CHANNELS[enc]
+    depth = 2 if enc in ('mono16', '16UC1') else 1
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    if h == 0 or w == 0:
+        raise ValueError(f'empty image ({w} x {h})')
+    if step < w * c * depth or len(msg.data) < h * step:
+        raise ValueError(f'image data too short: {len(msg.data)} bytes for {w} x {h} {enc} with step {step}')
+    buf = np.frombuffer(bytes(msg.data), np.uint8)[:h * step].reshape(h, step)[:, :w * c * depth]
+    if depth == 2:
+        dtype = '>u2' if msg.is_bigendian else '<u2'
+        grey = buf.copy().view(dtype).reshape(h, w).astype(np.float32)
+        return np.clip(grey / 257.0, 0, 255).astype(np.uint8)
+    img = buf.reshape(h, w, c)
+    if enc == 'rgb8':
+        return img[:, :, ::-1].copy()
+    if enc == 'rgba8':
+        return img[:, :, 2::-1].copy()
+    if enc == 'bgra8':
+        return img[:, :, :3].copy()
+    if c == 1:
+        return img[:, :, 0].copy()
+    return img.copy()
+
+
+def yaw_quaternion(yaw: float):
+    return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+
+
+class PatternPerception(Node):
+    def __init__(self, **kwargs):
+        super().__init__('pattern_perception', **kwargs)
+        positive = ParameterDescriptor(floating_point_range=[FloatingPointRange(
+            from_value=1e-9, to_value=1e3, step=0.0)], description='table metres per pixel')
+        self.m_per_px = self.declare_parameter('m_per_px', 0.001, positive).value
+        self.origin_row = self.declare_parameter('origin_row', -1.0, ParameterDescriptor(
+            description='origin pixel row r0 (< 0: bottom row)')).value
+        self.origin_col = self.declare_parameter('origin_col', 0.0, ParameterDescriptor(
+            description='origin pixel column c0')).value
+        homography = list(self.declare_parameter('homography', Parameter.Type.DOUBLE_ARRAY, ParameterDescriptor(
+            description='row-major 3x3 H, (x, y, 1) ~ H (col, row, 1); unset or empty: use m_per_px')).value
+            or [])
+        step = self.declare_parameter('step_px', 2.0, ParameterDescriptor(
+            floating_point_range=[FloatingPointRange(from_value=0.1, to_value=100.0, step=0.0)],
+            description='point spacing along the path [px]')).value
+        self.object_index = self.declare_parameter('object_index', 0, ParameterDescriptor(
+            integer_range=[IntegerRange(from_value=0, to_value=1000, step=1)],
+            description='object to publish (0: the longest)')).value
+        best_effort = self.declare_parameter('best_effort_input', False).value
+        self.homography = None
+        if homography:
+            if len(homography) != 9:
+                raise ValueError(f'parameter homography needs 9 numbers (row-major 3x3), got {len(homography)}')
+            try:
+                self.homography = Homography(np.array(homography, float).reshape(3, 3))
+            except MappingError as exc:
+                raise ValueError(f'parameter homography: {exc}') from None
+        self.config = PerceptionConfig(step_px=step)
+
+        latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        request_qos = qos_profile_sensor_data if best_effort else QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE)
+        self.publisher = self.create_publisher(Path, '/pattern', latched)
+        self.subscription = self.create_subscription(Image, '/deploy_request', self._on_image, request_qos)
+        self.published = 0
+        self.errors = 0
+        self._pending = None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._worker = threading.Thread(target=self._work, daemon=True)
+        self._worker.start()
+        self.get_logger().info('waiting for images on /deploy_request; the pattern goes to /pattern')
+
+    def _on_image(self, msg: Image):
+        with self._lock:
+            self._pending = msg
+        self._wake.set()
+
+    def _work(self):
+        while not self._stop.is_set():
+            if not self._wake.wait(timeout=0.1):
+                continue
+            self._wake.clear()
+            with self._lock:
+                msg, self._pending = self._pending, None
+            if msg is None:
+                continue
+            try:
+                self._process(msg)
+            except (ValueError, MappingError) as exc:     # PerceptionError is a ValueError
+                self.errors += 1
+                self.get_logger().error(f'deployment request image rejected: {exc}')
+            except Exception as exc:                       # keep the node alive whatever the image
+                self.errors += 1
+                self.get_logger().error(f'perception failed on the request image: {type(exc).__name__}: {exc}')
+
+    def _mapping(self, shape):
+        if self.homography is not None:
+            self.homography.check_image(shape)
+            return self.homography
+        r0 = self.origin_row if self.origin_row >= 0 else shape[0] - 1.0
+        return ScaleOrigin(self.m_per_px, r0, self.origin_col)
+
+    def _process(self, msg: Image):
+        image = image_to_bgr(msg)
+        mapping = self._mapping(image.shape)
+        try:
+            result = perceive(image, self.config)
+        except PerceptionError as exc:
+            raise ValueError(str(exc)) from None
+        n = len(result.objects)
+        if self.object_index >= n:
+            raise ValueError(f'object_index {self.object_index} but the image has {n} object(s)')
+        obj = result.objects[self.object_index]
+        x, y = mapping.to_table(obj.points[:, 0], obj.points[:, 1])
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+            raise ValueError('the mapping sends path points to infinity')
+        self.publisher.publish(self._path_message(msg, x, y))
+        self.published += 1
+        length = float(np.sum(np.hypot(np.diff(x), np.diff(y))))
+        note = f'; {n - 1} other object(s) not published' if n > 1 else ''
+        self.get_logger().info(f'published /pattern: object {self.object_index} of {n}, {len(x)} points, '
+                               f'{length:.3f} m, {result.timings_ms["total"]:.0f} ms{note}')
+
+    def _path_message(self, msg: Image, x: np.ndarray, y: np.ndarray) -> Path:
+        path = Path()
+        stamp = msg.header.stamp
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            stamp = self.get_clock().now().to_msg()
+        path.header.stamp = stamp
+        path.header.frame_id = 'table'
+        dx = np.gradient(x) if len(x) > 1 else np.zeros(1)
+        dy = np.gradient(y) if len(y) > 1 else np.zeros(1)
+        for xi, yi, dxi, dyi in zip(x.tolist(), y.tolist(), dx.tolist(), dy.tolist()):
+            pose = PoseStamped()
+            pose.header = path.header
+            pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = xi, yi, 0.0
+            q = yaw_quaternion(math.atan2(dyi, dxi))
+            pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z, pose.pose.orientation.w = q
+            path.poses.append(pose)
+        return path
+
+    def close(self):
+        self._stop.set()
+        self._wake.set()
+        self._worker.join(timeout=10)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PatternPerception()
+        rclpy.spin(node)
+    except ValueError as exc:
+        print(f'pattern_perception: error: {exc}')
+        return 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

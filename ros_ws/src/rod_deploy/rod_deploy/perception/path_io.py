@@ -1,0 +1,90 @@
+"""Files of perceived paths: ``path.csv`` (all objects) and the contract's pattern text file (one curve).
+
+``path.csv``: header ``object,row,col,x,y``; object ids from 0, the points of each object in order from
+one end (a closed object repeats its first point at the end); (row, col) in pixels (integer values at
+pixel centres), (x, y) in table metres.
+
+Pattern text file (CONTRACTS.md section 4): one point per line, ``x y z`` in metres in the table frame
+(z = 0 on the table); readers also accept ``x y`` lines, blank lines and ``#`` comments.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+PATH_CSV_HEADER = ('object', 'row', 'col', 'x', 'y')
+
+
+class PathFileError(ValueError):
+    """A malformed path.csv or pattern file."""
+
+
+def write_path_csv(path, objects_px: list, objects_xy: list):
+    """Write ``path.csv``: ``objects_px`` and ``objects_xy`` are lists of (n_k, 2) arrays, (row, col) [px]
+    and (x, y) [m], one per object, in object order."""
+    if len(objects_px) != len(objects_xy):
+        raise ValueError('one pixel path and one metric path per object')
+    with open(path, 'w', newline='') as f:
+        w = csv.writer(f)
+        w.writerow(PATH_CSV_HEADER)
+        for k, (px, xy) in enumerate(zip(objects_px, objects_xy)):
+            px, xy = np.asarray(px, float), np.asarray(xy, float)
+            if px.shape != xy.shape:
+                raise ValueError(f'object {k}: pixel and metric paths differ in shape')
+            for (r, c), (x, y) in zip(px, xy):
+                w.writerow((k, f'{r:.3f}', f'{c:.3f}', f'{x:.6f}', f'{y:.6f}'))
+
+
+def read_path_csv(path) -> dict:
+    """{object id: (points_px (n, 2) (row, col), points_xy (n, 2) (x, y))} from a ``path.csv``."""
+    path = Path(path)
+    with open(path, newline='') as f:
+        rows = list(csv.reader(f))
+    if not rows or tuple(h.strip() for h in rows[0]) != PATH_CSV_HEADER:
+        raise PathFileError(f'{path}: header must be {",".join(PATH_CSV_HEADER)}')
+    data: dict = {}
+    for i, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        try:
+            k, r, c, x, y = int(row[0]), *map(float, row[1:5])
+        except (ValueError, IndexError):
+            raise PathFileError(f'{path}, line {i}: expected object,row,col,x,y') from None
+        data.setdefault(k, []).append((r, c, x, y))
+    out = {}
+    for k, pts in sorted(data.items()):
+        a = np.array(pts)
+        out[k] = (a[:, :2], a[:, 2:])
+    return out
+
+
+def write_pattern_file(path, points_xy: np.ndarray, z_m: float = 0.0):
+    """Write the pattern text file: ``x y z`` per line [m]."""
+    pts = np.asarray(points_xy, float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+        raise ValueError('a pattern needs at least two (x, y) points')
+    with open(path, 'w') as f:
+        for x, y in pts:
+            f.write(f'{x:.6f} {y:.6f} {z_m:.6f}\n')
+
+
+def read_pattern_file(path) -> np.ndarray:
+    """(n, 3) points [m] of a pattern text file (z = 0 where a line gives only x y)."""
+    path = Path(path)
+    pts = []
+    for i, line in enumerate(path.read_text().splitlines(), start=1):
+        line = line.split('#', 1)[0].replace(',', ' ').strip()
+        if not line:
+            continue
+        try:
+            vals = [float(v) for v in line.split()]
+        except ValueError:
+            raise PathFileError(f'{path}, line {i}: not a number') from None
+        if len(vals) not in (2, 3):
+            raise PathFileError(f'{path}, line {i}: expected "x y" or "x y z", got {len(vals)} values')
+        pts.append(vals + [0.0] * (3 - len(vals)))
+    if len(pts) < 2:
+        raise PathFileError(f'{path}: a pattern needs at least two points')
+    return np.array(pts)
