@@ -122,6 +122,21 @@ class MechanicalModel:
             self._kernel = pack_model(self)
         return self._kernel
 
+    def extended(self, coefficients=(), terms=()) -> 'MechanicalModel':
+        """A copy with added named coefficients and model terms (how a new physical effect plugs in: e.g.
+        ``Coefficient('c_loop', 0.01, 'loop joint viscous damping', 'N m s/rad')`` and a ViscousDamping term on
+        every loop coordinate using its index). Terms refer to coefficients by index in the extended list."""
+        import copy
+        out = copy.copy(self)
+        names = set(self.coef_names)
+        for c in coefficients:
+            if c.name in names:
+                raise ValueError(f'coefficient {c.name} already exists')
+        out.coefficients = list(self.coefficients) + list(coefficients)
+        out.terms = list(self.terms) + list(terms)
+        out._kernel = None
+        return out
+
     def with_weld_targets(self, targets) -> 'MechanicalModel':
         """A copy whose welds have the given target poses (used for continuation in static equilibrium)."""
         import copy
@@ -203,6 +218,7 @@ class ModelBuilder:
             jtype=np.array(self.jtype, dtype=np.int64), body_mass=np.array(self.mass, dtype=float),
             body_com=np.array(self.com).reshape(n, 3), body_inertia=np.array(self.inertia).reshape(n, 3, 3),
             gravity=self.gravity.copy(), frames=dict(self.frames), welds=list(self.welds),
-            input_coords=np.array(self.inputs, dtype=np.int64), input_gain_coef=np.array(self.input_gain, dtype=np.int64),
+            input_coords=np.array(self.inputs, dtype=np.int64),
+            input_gain_coef=np.array(self.input_gain, dtype=np.int64),
             coefficients=list(self.coefficients), terms=list(self.terms),
             measured_coords=np.array(self.measured, dtype=np.int64), description=dict(self.description))

@@ -93,11 +93,3 @@ def combine_inertias(parts):
         inertia += np.asarray(i_c, dtype=float) + m * (d @ d * np.eye(3) - np.outer(d, d))
     return mass, com, inertia
 
-
-def rotation_error_vector(R_target, R) -> np.ndarray:
-    """vee(skew(R_target^T R)): three independent orientation constraints, zero when R = R_target.
-
-    Equals sin(angle) * axis of the relative rotation, so it is full rank for relative angles below pi/2.
-    """
-    A = np.asarray(R_target).T @ np.asarray(R)
-    return 0.5 * np.array([A[2, 1] - A[1, 2], A[0, 2] - A[2, 0], A[1, 0] - A[0, 1]])

@@ -67,6 +67,13 @@ def _newton(km, q, mu, coef, free, nu, tol=1e-11, max_iterations=50):
         r, J, dr_dc, grad, Dh = _residual_and_jacobian(km, q, mu, coef, free, nu)
         scale = 1.0 + np.abs(grad).max()
         if np.abs(r[:nf]).max(initial=0.0) < tol * scale and np.abs(r[nf:]).max(initial=0.0) < 1e-12:
+            try:                    # one more (quadratically convergent) step: full precision for the derivatives
+                delta = np.linalg.solve(J, -r)
+                q = q.copy()
+                q[free] += delta[:nf]
+                mu = mu + delta[nf:]
+            except np.linalg.LinAlgError:
+                pass
             return q, mu, it, True
         try:
             delta = np.linalg.solve(J, -r)
@@ -102,7 +109,8 @@ def static_equilibrium(model, coef, q_guess, continuation_steps: int = 8) -> Sta
         km0 = model.kernel()
         starts, goals = [], []
         for w in model.welds:
-            R, p = frame_pose(km0, q, w.coord, np.ascontiguousarray(w.offset[:3, :3]), np.ascontiguousarray(w.offset[:3, 3]))
+            R, p = frame_pose(km0, q, w.coord, np.ascontiguousarray(w.offset[:3, :3]),
+                              np.ascontiguousarray(w.offset[:3, 3]))
             starts.append((R, p))
             goals.append((w.target[:3, :3], w.target[:3, 3]))
         slerps = [Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([s[0], g[0]]))) for s, g in zip(starts, goals)]

@@ -32,7 +32,8 @@ KernelModel = namedtuple('KernelModel', [
     'visc_coord', 'visc_coef',
     'coul_coord', 'coul_coef', 'coul_vs',
     'cforce_coord', 'cforce_coef',
-    'input_coord', 'input_gain_coef', 'ncoef'])
+    'input_coord', 'input_gain_coef', 'ncoef',
+    'measured', 'fb_Kp', 'fb_Kd'])
 
 
 def _topological_order(parent: np.ndarray) -> np.ndarray:
@@ -112,7 +113,10 @@ def pack_model(model: MechanicalModel) -> KernelModel:
         coul_vs=floats([t.velocity_scale for t in coul]),
         cforce_coord=ints([t.coord for t in cforce]), cforce_coef=ints([t.coef for t in cforce]),
         input_coord=model.input_coords.astype(np.int64), input_gain_coef=model.input_gain_coef.astype(np.int64),
-        ncoef=len(model.coefficients))
+        ncoef=len(model.coefficients),
+        measured=model.measured_coords.astype(np.int64),
+        fb_Kp=np.zeros((len(model.measured_coords), len(model.measured_coords))),
+        fb_Kd=np.zeros((len(model.measured_coords), len(model.measured_coords))))
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -275,37 +279,39 @@ def point_position_jacobian(km, q, coord, Xp, y, C):
 
 @njit(cache=True)
 def _body_spatial_inertia(m, com_local, I_local, R, p, out):
-    """6x6 spatial inertia about the base origin of a body at pose (R, p), twist order (v; w)."""
-    c = np.empty(3)
-    _mv3(R, com_local, c)
-    c += p
-    Iw = np.empty((3, 3))
-    tmp = np.empty((3, 3))
-    _mm3(R, I_local, tmp)
-    for r in range(3):
-        for s in range(3):
-            Iw[r, s] = tmp[r, 0] * R[s, 0] + tmp[r, 1] * R[s, 1] + tmp[r, 2] * R[s, 2]
-    cc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
-    out[:, :] = 0.0
-    for r in range(3):
-        out[r, r] = m
+    """6x6 spatial inertia about the base origin of a body at pose (R, p), twist order (v; w) (no allocation)."""
+    c0 = p[0] + R[0, 0] * com_local[0] + R[0, 1] * com_local[1] + R[0, 2] * com_local[2]
+    c1 = p[1] + R[1, 0] * com_local[0] + R[1, 1] * com_local[1] + R[1, 2] * com_local[2]
+    c2 = p[2] + R[2, 0] * com_local[0] + R[2, 1] * com_local[1] + R[2, 2] * com_local[2]
+    for r in range(6):
+        for s in range(6):
+            out[r, s] = 0.0
+    out[0, 0] = m
+    out[1, 1] = m
+    out[2, 2] = m
     # upper right: -m [c]x ; lower left: m [c]x
-    out[0, 4] = m * c[2]
-    out[0, 5] = -m * c[1]
-    out[1, 3] = -m * c[2]
-    out[1, 5] = m * c[0]
-    out[2, 3] = m * c[1]
-    out[2, 4] = -m * c[0]
-    out[3, 1] = -m * c[2]
-    out[3, 2] = m * c[1]
-    out[4, 0] = m * c[2]
-    out[4, 2] = -m * c[0]
-    out[5, 0] = -m * c[1]
-    out[5, 1] = m * c[0]
-    # lower right: Iw - m [c][c] = Iw + m (|c|^2 I - c c^T)
+    out[0, 4] = m * c2
+    out[0, 5] = -m * c1
+    out[1, 3] = -m * c2
+    out[1, 5] = m * c0
+    out[2, 3] = m * c1
+    out[2, 4] = -m * c0
+    out[3, 1] = -m * c2
+    out[3, 2] = m * c1
+    out[4, 0] = m * c2
+    out[4, 2] = -m * c0
+    out[5, 0] = -m * c1
+    out[5, 1] = m * c0
+    # lower right: R I R^T + m (|c|^2 I - c c^T)
+    cc = c0 * c0 + c1 * c1 + c2 * c2
     for r in range(3):
+        a0 = R[r, 0] * I_local[0, 0] + R[r, 1] * I_local[1, 0] + R[r, 2] * I_local[2, 0]
+        a1 = R[r, 0] * I_local[0, 1] + R[r, 1] * I_local[1, 1] + R[r, 2] * I_local[2, 1]
+        a2 = R[r, 0] * I_local[0, 2] + R[r, 1] * I_local[1, 2] + R[r, 2] * I_local[2, 2]
+        cr = c0 if r == 0 else (c1 if r == 1 else c2)
         for s in range(3):
-            out[3 + r, 3 + s] = Iw[r, s] - m * c[r] * c[s]
+            cs = c0 if s == 0 else (c1 if s == 1 else c2)
+            out[3 + r, 3 + s] = a0 * R[s, 0] + a1 * R[s, 1] + a2 * R[s, 2] - m * cr * cs
         out[3 + r, 3 + r] += m * cc
 
 
@@ -402,13 +408,20 @@ def lagrangian_derivatives(km, q, v, coef, second, Lq, Lv, Lqq, Lqv, Lvv, dLq_dc
 
 @njit(cache=True)
 def generalized_forces(km, q, v, u, coef, F, dF_dq, dF_dv, dF_du, dF_dc):
-    """Generalized forces F(q, qdot, u; coef) of the inputs and the dissipative/bias terms, and their derivatives."""
+    """Generalized forces F(q, qdot, u; coef) and their derivatives.
+
+    u = (tau (nu), theta_ref (na), theta_rate_ref (na)): the input torques, then the reference angles and rates of the
+    tracking feedback tau_fb = Kp (theta_ref - q[measured]) + Kd (theta_rate_ref - qdot[measured]) (km.fb_Kp, fb_Kd;
+    zero gains: no feedback). Then the dissipative/bias terms of the model (viscous, Coulomb, constant forces).
+    """
     F[:] = 0.0
     dF_dq[:, :] = 0.0
     dF_dv[:, :] = 0.0
     dF_du[:, :] = 0.0
     dF_dc[:, :] = 0.0
-    for a in range(km.input_coord.shape[0]):
+    nu = km.input_coord.shape[0]
+    na = km.measured.shape[0]
+    for a in range(nu):
         i = km.input_coord[a]
         gc = km.input_gain_coef[a]
         gain = coef[gc] if gc >= 0 else 1.0
@@ -416,6 +429,20 @@ def generalized_forces(km, q, v, u, coef, F, dF_dq, dF_dv, dF_du, dF_dc):
         dF_du[i, a] += gain
         if gc >= 0:
             dF_dc[i, gc] += u[a]
+    if u.shape[0] >= nu + 2 * na:
+        for a in range(na):
+            i = km.measured[a]
+            for b in range(na):
+                kp = km.fb_Kp[a, b]
+                kd = km.fb_Kd[a, b]
+                if kp == 0.0 and kd == 0.0:
+                    continue
+                j = km.measured[b]
+                F[i] += kp * (u[nu + b] - q[j]) + kd * (u[nu + na + b] - v[j])
+                dF_dq[i, j] -= kp
+                dF_dv[i, j] -= kd
+                dF_du[i, nu + b] += kp
+                dF_du[i, nu + na + b] += kd
     for s in range(km.visc_coord.shape[0]):
         i = km.visc_coord[s]
         k = km.visc_coef[s]
@@ -520,3 +547,10 @@ def weld_constraints(km, q, lam, hessian, h, Dh, H):
                     H[i, j] += val
                     if j != i:
                         H[j, i] += val
+
+
+@njit(cache=True)
+def point_positions(km, Q, coord, Xp, Y, C):
+    """Positions Y (T, 3) and Jacobians C (T, 3, n) of a point fixed in ``coord``'s frame along configurations Q."""
+    for k in range(Q.shape[0]):
+        point_position_jacobian(km, Q[k], coord, Xp, Y[k], C[k])

@@ -12,8 +12,9 @@ M2 = D2 D1 L_d + d f_k^- / d q_{k+1}. With D1 L_d = dt/2 L_q - L_v and D2 L_d = 
     D1D1 L_d = dt/4 Lqq - (Lqv + Lqv^T)/2 + Lvv/dt      D2D1 L_d = dt/4 Lqq + (Lqv - Lqv^T)/2 - Lvv/dt
     D1D2 L_d = dt/4 Lqq - (Lqv - Lqv^T)/2 - Lvv/dt      D2D2 L_d = dt/4 Lqq + (Lqv + Lqv^T)/2 + Lvv/dt
 
-where DaDb L_d means d(Db L_d)/d(slot a). Inputs u_k may carry the paper's stabilizing feedback
-u_k = tau_k + G_k (theta_meas,k - S q_k) (Sec. IV-C).
+where DaDb L_d means d(Db L_d)/d(slot a). The step input carries the measured torques and, for the stabilizing
+feedback on the measured arm angles (paper Sec. IV-C), their reference: the feedback torque is evaluated at the step's
+midpoint like every other force (:class:`TrackingFeedback`), which keeps it unconditionally stable.
 """
 from __future__ import annotations
 
@@ -119,95 +120,136 @@ def newton_step(km, coef, dt, qk, pk, u, Dhk, q_guess, lam_guess, qn_out, lam_ou
 
 
 @njit(cache=True)
-def simulate_kernel(km, coef, dt, q0, p0, tau, theta_ref, gains, measured, Q, P, LAM, U, ITER):
-    """Integrate T-1 steps from (q0, p0). Input of step k: u_k = tau[k] + G_k (theta_ref[k] - q_k[measured]),
-    G_k = gains[min(k, len(gains) - 1)]. Returns the number of steps completed (T-1 on success)."""
-    T = Q.shape[0]
+def simulate_kernel(km, coef, h, q0, p0, U, Q, P, LAM, ITER):
+    """Integrate len(U) VI steps of size h from (q0, p0) with step inputs U (steps, nw).
+
+    Q, P: (steps + 1, n); LAM: (steps, m). Returns the number of steps completed.
+    """
+    steps = U.shape[0]
     n = q0.shape[0]
     m = LAM.shape[1]
-    nu = tau.shape[1]
-    na = measured.shape[0]
     Q[0] = q0
     P[0] = p0
-    h = np.empty(m)
+    h_ = np.empty(m)
     Dhk = np.empty((m, n))
     Hd = np.empty((1, 1))
-    weld_constraints(km, q0, np.zeros(m), False, h, Dhk, Hd)
+    weld_constraints(km, q0, np.zeros(m), False, h_, Dhk, Hd)
     lam_guess = np.zeros(m)
     q_guess = np.empty(n)
-    u = np.empty(nu)
-    ng = gains.shape[0]
-    for k in range(T - 1):
-        G = gains[min(k, ng - 1)]
-        for a in range(nu):
-            s = tau[k, a]
-            for b in range(na):
-                s += G[a, b] * (theta_ref[k, b] - Q[k, measured[b]])
-            u[a] = s
-        U[k] = u
-        if k == 0:
+    for j in range(steps):
+        if j == 0:
             q_guess[:] = Q[0]
-        else:
+        elif j == 1:
             for i in range(n):
-                q_guess[i] = 2.0 * Q[k, i] - Q[k - 1, i]
-        it, ok, hmax = newton_step(km, coef, dt, Q[k], P[k], u, Dhk, q_guess, lam_guess, Q[k + 1], LAM[k],
-                                   P[k + 1], NEWTON_MAX_ITERATIONS)
-        ITER[k] = it
+                q_guess[i] = 2.0 * Q[j, i] - Q[j - 1, i]
+        else:                                   # quadratic extrapolation: usually one Newton step suffices
+            for i in range(n):
+                q_guess[i] = 3.0 * Q[j, i] - 3.0 * Q[j - 1, i] + Q[j - 2, i]
+        it, ok, hmax = newton_step(km, coef, h, Q[j], P[j], U[j], Dhk, q_guess, lam_guess, Q[j + 1], LAM[j],
+                                   P[j + 1], NEWTON_MAX_ITERATIONS)
+        ITER[j] = it
         if not ok:
-            return k
-        lam_guess[:] = LAM[k]
-        weld_constraints(km, Q[k + 1], lam_guess, False, h, Dhk, Hd)
-    return T - 1
+            return j
+        lam_guess[:] = LAM[j]
+        weld_constraints(km, Q[j + 1], lam_guess, False, h_, Dhk, Hd)
+    return steps
+
+
+@dataclass(frozen=True)
+class TrackingFeedback:
+    """Feedback on the measured arm angles acting inside the step (at the midpoint, hence implicit):
+    tau_fb = Kp (theta_meas(t_mid) - q_arm,mid) + Kd (theta_meas_rate - qdot_arm), Kp, Kd (na, na)."""
+    Kp: np.ndarray
+    Kd: np.ndarray
+
+
+def step_inputs(model, tau, theta_ref=None, dt=None, substeps: int = 1):
+    """Per-VI-step input vectors (steps*substeps, nu + 2 na): the torque of the sample interval, then the reference
+    angles at the VI step's midpoint (linear between samples) and the reference rate (theta_{k+1} - theta_k)/dt."""
+    tau = np.atleast_2d(np.asarray(tau, dtype=float))
+    steps, nu = tau.shape
+    na = len(model.measured_coords)
+    W = np.zeros((steps * substeps, nu + 2 * na))
+    W[:, :nu] = np.repeat(tau, substeps, axis=0)
+    if theta_ref is not None:
+        th = np.asarray(theta_ref, dtype=float)
+        rate = (th[1:steps + 1] - th[:steps]) / dt
+        for sub in range(substeps):
+            frac = (sub + 0.5) / substeps
+            W[sub::substeps, nu:nu + na] = th[:steps] + frac * (th[1:steps + 1] - th[:steps])
+            W[sub::substeps, nu + na:] = rate
+    return W
+
+
+def feedback_kernel(model, feedback: TrackingFeedback | None):
+    km = model.kernel()
+    if feedback is None:
+        return km
+    return km._replace(fb_Kp=np.ascontiguousarray(feedback.Kp, dtype=float),
+                       fb_Kd=np.ascontiguousarray(feedback.Kd, dtype=float))
 
 
 @dataclass
 class Trajectory:
-    """A simulated trajectory on the time grid t_k = k dt, k = 0..T-1.
+    """A simulated trajectory on the sample grid t_k = k dt, k = 0..T-1 (each interval ``substeps`` VI steps).
 
-    q, p: (T, n) configurations and discrete momenta; lam: (T-1, m) multipliers of step k; u: (T-1, nu) the inputs
-    applied over [t_k, t_{k+1}] (feedback included); newton_iterations: (T-1,).
+    q_fine, p_fine: ((T-1) substeps + 1, n) configurations and discrete momenta on the VI grid (step dt/substeps);
+    lam_fine: ((T-1) substeps, m) multipliers; u_fine: the step inputs (torque, feedback reference);
+    newton_iterations: per VI step. ``q``, ``p`` are the states at the samples; ``feedback_torque`` (T-1, na) the
+    tracking feedback's torque at each interval's first VI step.
     """
     dt: float
-    q: np.ndarray
-    p: np.ndarray
-    lam: np.ndarray
-    u: np.ndarray
+    substeps: int
+    q_fine: np.ndarray
+    p_fine: np.ndarray
+    lam_fine: np.ndarray
+    u_fine: np.ndarray
     newton_iterations: np.ndarray
     coef: np.ndarray
+    feedback: TrackingFeedback | None = None
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.q_fine[::self.substeps]
+
+    @property
+    def p(self) -> np.ndarray:
+        return self.p_fine[::self.substeps]
+
+    @property
+    def x(self) -> np.ndarray:
+        """(T, 2n) discrete states x_k = (q_k, p_k)."""
+        return np.hstack([self.q, self.p])
 
 
-def simulate(model, coef, dt: float, q0, p0, tau, theta_ref=None, gains=None) -> Trajectory:
-    """Simulate ``len(tau)`` steps driven by inputs ``tau`` (T-1, nu), optionally with proportional feedback
-    u_k = tau_k + G_k (theta_ref_k - q_k[measured]) (gains: (nu, na), (T-1, nu, na) or None)."""
-    km = model.kernel()
+def simulate(model, coef, dt: float, q0, p0, tau, theta_ref=None, feedback: TrackingFeedback | None = None,
+             substeps: int = 1) -> Trajectory:
+    """Simulate ``len(tau)`` sample intervals of ``dt`` driven by torques ``tau`` (T-1, nu) (held over each
+    interval), each as ``substeps`` VI steps, optionally with the tracking feedback towards ``theta_ref`` (T, na).
+
+    Raises :class:`SimulationError` if a step does not converge."""
     tau = np.ascontiguousarray(np.atleast_2d(tau), dtype=float)
     steps = tau.shape[0]
-    T = steps + 1
     n, m = model.n, model.n_constraints
-    na = len(model.measured_coords)
     nu = len(model.input_coords)
     if tau.shape[1] != nu:
         raise ValueError(f'tau has {tau.shape[1]} columns, the model has {nu} inputs')
-    if theta_ref is None:
-        theta_ref = np.zeros((T, na))
-    if gains is None:
-        gains = np.zeros((1, nu, na))
-    gains = np.asarray(gains, dtype=float)
-    if gains.ndim == 2:
-        gains = gains[None]
-    Q = np.empty((T, n))
-    P = np.empty((T, n))
-    LAM = np.zeros((steps, m))
-    U = np.empty((steps, nu))
-    ITER = np.zeros(steps, dtype=np.int64)
+    substeps = int(substeps)
+    U = step_inputs(model, tau, theta_ref if feedback is not None else None, dt, substeps)
+    nf = steps * substeps
+    Q = np.empty((nf + 1, n))
+    P = np.empty((nf + 1, n))
+    LAM = np.zeros((nf, m))
+    ITER = np.zeros(nf, dtype=np.int64)
     coef = np.ascontiguousarray(coef, dtype=float)
-    done = simulate_kernel(km, coef, float(dt), np.ascontiguousarray(q0, dtype=float),
-                           np.ascontiguousarray(p0, dtype=float), tau, np.ascontiguousarray(theta_ref, dtype=float),
-                           np.ascontiguousarray(gains), model.measured_coords, Q, P, LAM, U, ITER)
-    if done < steps:
-        raise SimulationError(f'the variational integrator step did not converge at t = {done * dt:.3f} s '
-                              f'(step {done} of {steps}); the simulated motion left the model\'s valid region')
-    return Trajectory(dt=float(dt), q=Q, p=P, lam=LAM, u=U, newton_iterations=ITER, coef=coef.copy())
+    done = simulate_kernel(feedback_kernel(model, feedback), coef, float(dt) / substeps,
+                           np.ascontiguousarray(q0, dtype=float), np.ascontiguousarray(p0, dtype=float), U, Q, P, LAM,
+                           ITER)
+    if done < nf:
+        raise SimulationError(f'the variational integrator step did not converge at t = {done * dt / substeps:.3f} s '
+                              f'(step {done} of {nf}); the simulated motion left the model\'s valid region')
+    return Trajectory(dt=float(dt), substeps=substeps, q_fine=Q, p_fine=P, lam_fine=LAM, u_fine=U,
+                      newton_iterations=ITER, coef=coef.copy(), feedback=feedback)
 
 
 def continuous_momentum(model, coef, q, v) -> np.ndarray:
@@ -221,9 +263,10 @@ def continuous_momentum(model, coef, q, v) -> np.ndarray:
     return Lv
 
 
-def rest_momentum(model, coef, dt, q0, u0) -> np.ndarray:
-    """p_0 = D2 L_d(q0, q0) + f^+ for a system at rest at q0 under input u0 (then it stays at rest if q0 is an
-    equilibrium under u0): -dt/2 grad V(q0) + dt/2 F(q0, 0, u0)."""
+def rest_momentum(model, coef, h, q0, tau0) -> np.ndarray:
+    """p_0 = D2 L_d(q0, q0) + f^+ for a system at rest at q0 under torques tau0, VI step h (then it stays at rest
+    if q0 is an equilibrium under tau0): -h/2 grad V(q0) + h/2 F(q0, 0, tau0). A tracking feedback referenced to
+    the resting angles adds nothing."""
     n = model.n
     nc = len(coef)
     nu = len(model.input_coords)
@@ -234,9 +277,9 @@ def rest_momentum(model, coef, dt, q0, u0) -> np.ndarray:
     coef = np.asarray(coef, float)
     lagrangian_derivatives(km, q0, np.zeros(n), coef, False, Lq, Lv, np.zeros((1, 1)), np.zeros((1, 1)),
                            np.zeros((1, 1)), np.zeros((n, nc)))
-    generalized_forces(km, q0, np.zeros(n), np.asarray(u0, float).reshape(nu), coef, F, np.zeros((n, n)),
+    generalized_forces(km, q0, np.zeros(n), np.asarray(tau0, float).reshape(nu), coef, F, np.zeros((n, n)),
                        np.zeros((n, n)), np.zeros((n, nu)), np.zeros((n, nc)))
-    return 0.5 * dt * Lq + Lv + 0.5 * dt * F
+    return 0.5 * h * Lq + Lv + 0.5 * h * F
 
 
 def energy(model, coef, q, v) -> tuple[float, float]:
@@ -262,3 +305,70 @@ def constraint_jacobian(model, q) -> np.ndarray:
     Dh = np.zeros((m, model.n))
     weld_constraints(model.kernel(), np.asarray(q, float), np.zeros(m), False, np.zeros(m), Dh, np.zeros((1, 1)))
     return Dh
+
+
+def stable_substeps(model, coef, dt, q_eq, mu_eq, safety: float = 3.0, max_substeps: int = 8) -> int:
+    """VI substeps per sample interval ``dt`` that keep the constrained midpoint rule linearly stable.
+
+    The constraint force -Dh(q_k)^T lambda_k acts at the node q_k, so its curvature stiffness H = sum mu_i D2 h_i is
+    integrated explicitly (like leapfrog) while springs and gravity are averaged over the midpoint: on the constraint
+    manifold (basis Z), the step is stable iff every eigenvalue of (Z^T H Z, Z^T M Z) is below 4 / h^2. Light links
+    under tension (the contract loop: 50 g cylinders, 1e-5 kg m^2 about their axis) can violate that at dt = 0.01 s,
+    so the sample interval is split into the fewest substeps with ``safety`` margin on kappa_max.
+    """
+    from scipy.linalg import eigh, null_space
+    m = model.n_constraints
+    if m == 0:
+        return 1
+    n = model.n
+    nc = len(coef)
+    Lvv = np.zeros((n, n))
+    lagrangian_derivatives(model.kernel(), np.asarray(q_eq, float), np.zeros(n), np.asarray(coef, float), True,
+                           np.zeros(n), np.zeros(n), np.zeros((n, n)), np.zeros((n, n)), Lvv, np.zeros((n, nc)))
+    h, Dh, H = np.zeros(m), np.zeros((m, n)), np.zeros((n, n))
+    weld_constraints(model.kernel(), np.asarray(q_eq, float), np.asarray(mu_eq, float), True, h, Dh, H)
+    Z = null_space(Dh)
+    if Z.shape[1] == 0:
+        return 1                     # no motion left on the constraint manifold
+    kappa = float(np.max(eigh(Z.T @ H @ Z, Z.T @ Lvv @ Z, eigvals_only=True)))
+    if kappa <= 0:
+        return 1
+    return int(min(max_substeps, max(1, np.ceil(dt * np.sqrt(safety * kappa) / 2.0))))
+
+
+@njit(cache=True)
+def _midpoint_energies(km, coef, Q, h, out):
+    n = Q.shape[1]
+    nc = coef.shape[0]
+    Lq = np.empty(n)
+    Lv = np.empty(n)
+    d = np.empty((1, 1))
+    dc = np.empty((n, nc))
+    qm = np.empty(n)
+    v = np.empty(n)
+    for k in range(Q.shape[0] - 1):
+        for i in range(n):
+            qm[i] = 0.5 * (Q[k, i] + Q[k + 1, i])
+            v[i] = (Q[k + 1, i] - Q[k, i]) / h
+        T, V = lagrangian_derivatives(km, qm, v, coef, False, Lq, Lv, d, d, d, dc)
+        out[k] = T + V
+
+
+def midpoint_energies(model, coef, q_fine, h) -> np.ndarray:
+    """Total energy T + V [J] at the midpoint of every VI step (velocity (q_{k+1} - q_k)/h)."""
+    Q = np.ascontiguousarray(q_fine, dtype=float)
+    out = np.empty(len(Q) - 1)
+    _midpoint_energies(model.kernel(), np.ascontiguousarray(coef, dtype=float), Q, float(h), out)
+    return out
+
+
+def required_substeps(model, traj, safety: float = 1.5, worst_steps: int = 5, max_substeps: int = 8) -> int:
+    """Substeps per sample that :func:`stable_substeps` asks for at the ``worst_steps`` VI steps of ``traj`` with the
+    largest constraint forces (the weld curvature stiffness grows with the loop's tension during the motion)."""
+    if model.n_constraints == 0 or traj.lam_fine.shape[0] == 0:
+        return 1
+    h = traj.dt / traj.substeps
+    norms = np.linalg.norm(traj.lam_fine, axis=1)
+    worst = np.argsort(norms)[-worst_steps:]
+    return max(stable_substeps(model, traj.coef, traj.dt, traj.q_fine[j], traj.lam_fine[j] / h, safety, max_substeps)
+               for j in worst)

@@ -1,0 +1,128 @@
+"""flex-ident: command-line identification of a flexible object's stiffness from a recorded bag.
+
+    flex-ident identify --bag BAG --experiment EXP.yaml --out DIR [--method lm|lbfgsb|steepest]
+                        [--cost end_effector|joint_angles] [--max-iterations N] [--no-plots] [--quiet]
+
+Writes DIR/report.json (CONTRACTS.md section 3) and plots, shows a progress bar (tqdm, on stderr) and prints the
+identified parameters. On bad input it prints one line ``flex-ident: error: ...`` and exits with status 2, writing
+no report.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's one-line error format (``flex-ident: error: ...``, exit status 2)."""
+
+    def error(self, message):
+        self.exit(EXIT_BAD_INPUT, f'flex-ident: error: {message} (see flex-ident {self._subcommand()}--help)\n')
+
+    def _subcommand(self):
+        parts = self.prog.split()
+        return (parts[1] + ' ') if len(parts) > 1 else ''
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog='flex-ident', description=__doc__.split('\n\n')[0])
+    sub = parser.add_subparsers(dest='command', required=True, parser_class=_Parser)
+    p = sub.add_parser('identify', help='identify the experiment\'s parameters from a recorded bag')
+    p.add_argument('--bag', required=True, help='rosbag2 directory (MCAP or sqlite3) with /joint_states')
+    p.add_argument('--experiment', required=True, help='experiment YAML (CONTRACTS.md section 2)')
+    p.add_argument('--out', required=True, help='output directory for report.json and the plots')
+    p.add_argument('--method', default='lm',
+                   help='lm (Levenberg-Marquardt, default), lbfgsb (L-BFGS-B with the adjoint gradient) or '
+                        'steepest (the paper\'s projected steepest descent with Armijo steps)')
+    p.add_argument('--cost', choices=['end_effector', 'joint_angles'], default=None,
+                   help='tracking cost (default: the experiment\'s, else end_effector as in the paper)')
+    p.add_argument('--max-iterations', type=int, default=None, help='optimizer iteration limit')
+    p.add_argument('--no-plots', action='store_true', help='write report.json only')
+    p.add_argument('--quiet', action='store_true', help='no progress bar')
+    return parser
+
+
+class _ProgressBar:
+    """tqdm bar over the optimizer iterations with the current cost and parameters, on stderr.
+
+    Created when optimization starts (input errors found while loading never leave a bar behind) and only on a
+    terminal (tqdm's ``disable=None``), so that captured stderr holds nothing but errors.
+    """
+
+    def __init__(self, total: int, enabled: bool):
+        self.total = total
+        self.enabled = enabled
+        self.bar = None
+
+    def __call__(self, info: dict):
+        stage = info.get('stage', '')
+        if self.bar is None:
+            if not self.enabled or stage != 'optimize':
+                return
+            from tqdm import tqdm
+            self.bar = tqdm(total=self.total, desc='optimize', unit='it', file=sys.stderr, dynamic_ncols=True,
+                            disable=None, leave=True)
+        self.bar.set_description(stage)
+        if stage == 'optimize' and 'iteration' in info:
+            self.bar.n = min(int(info['iteration']), self.bar.total)
+            post = {}
+            if 'cost' in info:
+                post['cost'] = f'{info["cost"]:.3e}'
+            for k, v in (info.get('parameters') or {}).items():
+                post[k] = f'{v:.4g}'
+            self.bar.set_postfix(post, refresh=False)
+            self.bar.refresh()
+        elif stage == 'done':
+            self.bar.total = max(self.bar.n, 1)
+            self.bar.refresh()
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def identify_command(args) -> int:
+    from flex_ident.identification.identify import IdentificationSettings, identify
+    from flex_ident.identification.optimizers import canonical_method
+
+    method = canonical_method(args.method)
+    if args.max_iterations is not None and args.max_iterations < 1:
+        raise ValueError(f'--max-iterations must be positive, got {args.max_iterations}')
+    total = args.max_iterations or (30 if method == 'lm' else 100)
+    bar = _ProgressBar(total, enabled=not args.quiet)
+    try:
+        run = identify(args.bag, args.experiment, args.out,
+                       IdentificationSettings(method=method, cost=args.cost, max_iterations=args.max_iterations,
+                                              plots=not args.no_plots), progress=bar)
+    finally:
+        bar.close()
+    report = run.report
+    summary = {'parameters': report['parameters'], 'parameter_std': report['parameter_std'],
+               'error_before': report['error_before'], 'error_after': report['error_after'],
+               'iterations': report['iterations'], 'wall_time_s': round(report['wall_time_s'], 2),
+               'report': str((__import__('pathlib').Path(args.out) / 'report.json'))}
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == 'identify':
+            return identify_command(args)
+    except ValueError as exc:          # every bad-input error of the project is a ValueError subclass
+        message = ' '.join(str(exc).split())
+        print(f'flex-ident: error: {message}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print('flex-ident: interrupted', file=sys.stderr)
+        return 130
+    return 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

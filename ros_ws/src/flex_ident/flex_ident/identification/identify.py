@@ -1,0 +1,153 @@
+"""Identification from a recorded bag and an experiment YAML: the whole job behind ``flex-ident identify`` and the
+``stiffness_identifier`` node.
+
+Stages (reported through ``progress`` as dicts with 'stage' and 'fraction', plus 'iteration' and 'cost' while
+optimizing):
+
+1. ``load``: experiment (validated), model (URDF arm + contract loop), bag (contract reader, window, uniform grid);
+2. ``equilibrium``: the object's static equilibrium at the first measured arm angles (recordings start at rest);
+3. ``feedback``: the LQR gains of the stabilizing feedback (fixed from here on) and the VI substeps;
+4. ``optimize``: the optimizer on the paper's cost (end-effector error) or the joint-angle variant;
+5. ``report``: parameter standard deviations from the curvature at the optimum, errors before/after,
+   ``report.json`` (CONTRACTS.md section 3) and the plots.
+
+Bad input raises a ValueError subclass with one clear message and writes nothing; a stale report.json in the output
+directory is removed first so that no old result is mistaken for this run's.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..mechanics.assembly import build_model
+from ..mechanics.experiment import load_experiment
+from ..mechanics.static_equilibrium import EquilibriumError, static_equilibrium
+from ..mechanics.variational_integrator import stable_substeps
+from .feedback import FeedbackWeights, lqr_tracking_feedback
+from .measurement import load_measurements
+from .optimizers import canonical_method, optimize
+from .problem import IdentificationProblem
+from .report import build_report, write_report
+
+Progress = Callable[[dict], None]
+
+
+class IdentificationInputError(ValueError):
+    """Input that makes identification impossible (named in the message)."""
+
+
+@dataclass
+class IdentificationSettings:
+    method: str = 'lm'
+    cost: str | None = None                     # None: the experiment's (default end_effector)
+    max_iterations: int | None = None           # None: the experiment's (lm) or the method's default
+    feedback: FeedbackWeights = FeedbackWeights()
+    torque_hold: str = 'midpoint'               # effort over [t_k, t_{k+1}]: 'midpoint' average or 'zoh' (tau_k)
+    plots: bool = True
+
+
+@dataclass
+class IdentificationRun:
+    """Everything a caller may want beyond the report (used by benchmarks and the next issue's diagnosis)."""
+    report: dict
+    model: object
+    problem: IdentificationProblem
+    result: object
+    initial: object                             # Evaluation at the initial parameters
+
+
+def _notify(progress: Progress | None, **info):
+    if progress is not None:
+        progress(info)
+
+
+def prepare(bag_path, experiment_path, settings: IdentificationSettings, progress: Progress | None = None):
+    """Load and validate everything, build the problem (stages load, equilibrium, feedback)."""
+    _notify(progress, stage='load', fraction=0.0)
+    experiment = load_experiment(experiment_path)
+    specs = experiment.identify.parameters
+    model = build_model(experiment)
+    if not specs:
+        raise IdentificationInputError(
+            f'{experiment.path}: identify.parameters is empty, nothing to identify (parameters of this model: '
+            f'{", ".join(model.coef_names)})')
+    bag = Path(bag_path)
+    if not bag.exists():
+        raise IdentificationInputError(f'bag {bag_path} does not exist')
+    joints = [model.coord_names[i] for i in model.measured_coords]
+    data, notes = load_measurements(bag, joints, experiment.identify.window_s)
+    _notify(progress, stage='equilibrium', fraction=0.0)
+    coef0 = model.coef_values()
+    q_guess = np.zeros(model.n)
+    q_guess[model.measured_coords] = data.theta[0]
+    try:
+        eq0 = static_equilibrium(model, coef0, q_guess)
+    except EquilibriumError as exc:
+        raise IdentificationInputError(f'{exc} (experiment {experiment.path}, first sample of bag {bag_path})') \
+            from None
+    _notify(progress, stage='feedback', fraction=0.0)
+    substeps = stable_substeps(model, coef0, data.dt, eq0.q, eq0.mu)
+    feedback = lqr_tracking_feedback(model, coef0, eq0.q, data.dt, settings.feedback, horizon_steps=len(data.t_s))
+    cost_kind = settings.cost or experiment.identify.cost
+    problem = IdentificationProblem(model, data, [p.name for p in specs], [p.min for p in specs],
+                                    [p.max for p in specs], feedback, substeps=substeps, cost_kind=cost_kind,
+                                    torque_hold=settings.torque_hold)
+    notes.update({'initial_equilibrium_iterations': eq0.newton_iterations, 'substeps_initial': substeps})
+    return experiment, model, problem, notes
+
+
+def identify(bag_path, experiment_path, out_dir, settings: IdentificationSettings | None = None,
+             progress: Progress | None = None) -> IdentificationRun:
+    """Run the identification and write ``out_dir/report.json`` and plots; returns the run."""
+    t_start = time.monotonic()
+    settings = settings or IdentificationSettings()
+    method = canonical_method(settings.method)
+    out = Path(out_dir)
+    stale = out / 'report.json'
+    if stale.exists():
+        stale.unlink()
+    experiment, model, problem, notes = prepare(bag_path, experiment_path, settings, progress)
+    specs = experiment.identify.parameters
+    p0 = np.array([p.initial for p in specs], float)
+    max_iterations = settings.max_iterations or (experiment.identify.max_iterations if method == 'lm' else None)
+
+    evaluations = {}
+
+    def on_iteration(info):
+        evaluations[info['iteration']] = info.pop('evaluation')
+        _notify(progress, stage='optimize', iteration=info['iteration'], cost=info['cost'],
+                fraction=info['fraction'], parameters=dict(zip(problem.free, info['params'])))
+
+    _notify(progress, stage='optimize', iteration=0, fraction=0.0)
+    try:
+        result = optimize(problem, p0, method, max_iterations, on_iteration)
+    except RuntimeError as exc:
+        raise IdentificationInputError(f'{exc} (bag {bag_path}, experiment {experiment.path})') from None
+    initial = evaluations[0]
+    _notify(progress, stage='report', fraction=0.0)
+    report = build_report(problem, result, initial, experiment, bag_path, method, notes,
+                          wall_time_s=time.monotonic() - t_start)
+    plots = []
+    if settings.plots:
+        from .plots import write_plots
+        out.mkdir(parents=True, exist_ok=True)
+        plots = write_plots(out, problem, result, initial, evaluations)
+    report['plots'] = [p.name for p in plots]
+    report['wall_time_s'] = time.monotonic() - t_start
+    write_report(out, report)
+    _notify(progress, stage='done', fraction=1.0)
+    return IdentificationRun(report=report, model=model, problem=problem, result=result, initial=initial)
+
+
+def run_identification(bag_path: str, experiment_path: str, out_dir: str, method: str = 'lm',
+                       progress: Callable[[dict], None] | None = None) -> dict:
+    """Identify the experiment's parameters from the bag; write ``out_dir/report.json`` (+ plots); return the report.
+
+    method: 'lm' (Levenberg-Marquardt, default), 'lbfgsb' (L-BFGS-B with the adjoint gradient) or 'steepest' (the
+    paper's projected steepest descent with Armijo steps). Raises ValueError subclasses on bad input.
+    """
+    return identify(bag_path, experiment_path, out_dir, IdentificationSettings(method=method), progress).report
