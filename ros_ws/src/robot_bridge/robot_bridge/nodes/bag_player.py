@@ -7,7 +7,8 @@ Parameters
   loop                  (bool)     replay forever (default false)
   topics                (string[]) topics to replay (default: all)
   remap                 (string[]) 'from:=to' topic renames, e.g. ['/joint_states:=/robot/joint_states']
-  wait_for_subscribers  (double)   seconds to wait for a first subscriber before playing (default 5)
+  wait_for_subscribers  (double)   seconds to wait for a first subscriber before playing (default 5); then up to
+                                   1 s more while subscribers of the other topics appear
   reliable              (bool)     publish RELIABLE (default) or BEST_EFFORT
 
 Messages are published as the serialized bytes stored in the bag (nothing is re-encoded), at
@@ -40,6 +41,10 @@ def parse_remaps(remaps: list[str]) -> dict[str, str]:
             raise ValueError(f"remap '{item}' is not of the form '/from:=/to'")
         out[src] = dst
     return out
+
+
+SETTLE_S = 1.0        # after the first subscriber, wait this long for subscribers of the other topics
+MATCH_GRACE_S = 0.1   # then this long for the subscribers' side of the match
 
 
 class BagPlayer(Node):
@@ -87,12 +92,20 @@ class BagPlayer(Node):
         raise BagError(f'bag {self.bag} has no messages on {self.topics}')
 
     def _wait_for_subscribers(self):
+        """Wait for a first subscriber; then let the others join (a recorder subscribes topic by topic as it
+        discovers them): play once every topic has one, or once no new topic matched for SETTLE_S."""
         deadline = time.monotonic() + self.wait_for_subscribers
+        matched, last_change = set(), None
         while time.monotonic() < deadline and not self._stop.is_set():
-            if any(p.get_subscription_count() > 0 for p in self._topic_publishers.values()):
+            now_matched = {t for t, p in self._topic_publishers.items() if p.get_subscription_count() > 0}
+            if now_matched - matched:
+                matched |= now_matched
+                last_change = time.monotonic()
+            if matched and (len(matched) == len(self._topic_publishers) or time.monotonic() - last_change > SETTLE_S):
+                time.sleep(MATCH_GRACE_S)   # the subscriber side matches the writer a moment after we see it
                 return True
             time.sleep(0.01)
-        return False
+        return bool(matched)
 
     def _play(self):
         try:
