@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import tempfile
 import time
@@ -54,6 +55,8 @@ class HeldOut:
     noise: tuple           # (position rad, velocity rad/s, effort N m)
     storage: str
     duration_s: float = 20.0
+    geometry: dict | None = None   # loop geometry other than the shipped examples' (links, radius, mass, clamp)
+    rate_hz: float = 100.0
 
 
 HELD_OUT = [
@@ -62,12 +65,23 @@ HELD_OUT = [
     HeldOut('h12_low', 12, 1.5, 0.8, 23, 0.9, 103, (1e-4, 5e-3, 0.05), 'mcap'),
     HeldOut('h6_soft', 6, 3.0, 1.5, 4, 0.6, 104, (2e-4, 5e-3, 0.1), 'sqlite3'),
     HeldOut('h6_stiff', 6, 8.0, 8.0, 9, 0.5, 105, (2e-4, 5e-3, 0.15), 'mcap', 12.0),
+    HeldOut('h12_noisy_wide', 12, 6.0, 9.0, 5, 1.4, 106, (1e-3, 1e-2, 0.5), 'mcap'),
+    HeldOut('h8_geometry', 8, 4.0, 6.0, 7, 1.0, 107, (2e-4, 5e-3, 0.1), 'sqlite3', 15.0,
+            dict(radius=0.2, mass=0.4, tube_radius=0.015, clamp_xyz=[0.65, -0.75, -0.25])),
+    HeldOut('h10_geometry_200hz', 10, 12.0, 2.5, 8, 1.0, 108, (2e-4, 5e-3, 0.1), 'mcap', 20.0,
+            dict(radius=0.3, mass=0.8, tube_radius=0.02, clamp_xyz=[0.55, -0.85, -0.4]), 200.0),
 ]
 
 
-def experiment_for(links: int, folder: Path, extra: str = '') -> Path:
-    src = ROOT / 'bags' / ('example_loop12' if links == 12 else 'example_loop6') / 'experiment.yaml'
+def experiment_for(links: int, folder: Path, extra: str = '', geometry: dict | None = None) -> Path:
+    src = ROOT / 'bags' / ('example_loop6' if links == 6 else 'example_loop12') / 'experiment.yaml'
     text = src.read_text().replace('urdf: baxter_right_arm.urdf', f'urdf: {src.parent / "baxter_right_arm.urdf"}')
+    text = re.sub(r'links: \d+', f'links: {links}', text)
+    for key, value in (geometry or {}).items():
+        if key == 'clamp_xyz':
+            text = re.sub(r'(clamp:\s*\n\s*xyz: )\[[^]]*\]', lambda m: m.group(1) + str(list(value)), text)
+        else:
+            text = re.sub(rf'(\n\s*{key}: )[0-9.eE+-]+', lambda m: m.group(1) + repr(value), text)
     path = folder / f'experiment_{links}{extra and "_" + extra}.yaml'
     path.write_text(text)
     return path
@@ -76,7 +90,6 @@ def experiment_for(links: int, folder: Path, extra: str = '') -> Path:
 def with_links(path: Path, links: int) -> Path:
     out = path.with_name(path.stem + f'_model{links}.yaml')
     text = path.read_text()
-    import re
     out.write_text(re.sub(r'links: \d+', f'links: {links}', text))
     return out
 
@@ -128,20 +141,21 @@ def main(argv=None):
     cases = HELD_OUT if not args.quick else [HELD_OUT[0], HELD_OUT[3]]
     generated = {}
     for case in cases:
-        exp = experiment_for(case.links, work)
+        exp = experiment_for(case.links, work, case.name, case.geometry)
         t = time.perf_counter()
         motion = SumOfSinesMotion(amplitudes_rad=tuple(case.amplitude_scale * DEFAULT_AMPLITUDES),
                                   phase_seed=case.phase_seed)
         noise = MeasurementNoise(*case.noise)
         rec = simulate_loop_experiment(exp, case.duration_s, k_theta=case.k_theta, k_phi=case.k_phi,
-                                       seed=case.noise_seed, noise=noise, motion=motion)
+                                       seed=case.noise_seed, noise=noise, motion=motion, rate_hz=case.rate_hz)
         bag = work / f'{case.name}_bag'
         write_joint_recording(bag, rec.joint_recording(), storage=case.storage)
         gen = time.perf_counter() - t
         generated[case.name] = (bag, exp, case)
         out = work / f'out_{case.name}'
         rep, wall = run(bag, exp, out)
-        label = (f'{case.name} ({case.links} links, phases {case.phase_seed}, amplitude x{case.amplitude_scale}, '
+        geometry = ', '.join(f'{k} {v}' for k, v in (case.geometry or {}).items())
+        label = (f'{case.name} ({case.links} links{", " + geometry if geometry else ""}, {case.rate_hz:g} Hz, phases {case.phase_seed}, amplitude x{case.amplitude_scale}, '
                  f'noise {case.noise[0]:g} rad / {case.noise[2]:g} N m, seed {case.noise_seed}; generated in '
                  f'{gen:.0f} s)')
         text, ok = row(label, case.storage, (case.k_theta, case.k_phi), rep, wall, out)

@@ -50,6 +50,15 @@ def _record(history, iteration, ev, n_evals, callback, max_iterations):
         callback(dict(entry, fraction=min(1.0, iteration / max(1, max_iterations)), evaluation=ev))
 
 
+#: LM damping (relative to the Gauss-Newton curvature) above which a small step says "the linear model is not
+#: trusted here", not "converged"
+MU_COLLAPSED = 1.0
+
+
+def _small(step, z, xtol):
+    return np.max(np.abs(step)) < xtol * (1.0 + np.max(np.abs(z)))
+
+
 def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5, ftol=1e-6):
     """Bounded Levenberg-Marquardt in z space. ``problem.evaluate(params, jacobian=True)``."""
     tf = problem.transform
@@ -107,9 +116,12 @@ def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5
                 mu = mu * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0.25 else mu * 2
                 break
             mu *= 4.0
-        if not accepted and not rescued and ev.cost > 0.5 * history[0]['cost']:
+        stuck = not accepted or (mu > MU_COLLAPSED and (_small(step, z, xtol)
+                                                      or ev.cost - trial.cost <= ftol * ev.cost))
+        if stuck and not rescued and ev.cost > 0.5 * history[0]['cost']:
             # stuck near the start: far from the truth the loop can move chaotically and its sensitivities
-            # explode (tiny LM steps); scan the whole parameter vector on a log scale and restart from the best
+            # explode (only tiny LM steps succeed); scan the whole parameter vector on a log scale and restart from
+            # the best point
             rescued = True
             best = _log_scan(problem, z, lo, hi, ev)
             n_evals += best[1]
@@ -125,10 +137,13 @@ def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5
         old_cost = ev.cost
         z, ev = z_new, trial
         _record(history, it, ev, n_evals, callback, max_iterations)
-        if np.max(np.abs(step)) < xtol * (1.0 + np.max(np.abs(z))):
+        small_step, small_decrease = _small(step, z, xtol), abs(old_cost - ev.cost) <= ftol * old_cost
+        if (small_step or small_decrease) and mu > MU_COLLAPSED and not rescued:
+            continue                       # tiny only because the trust region collapsed: not converged (yet)
+        if small_step:
             converged, message = True, f'step below {xtol:g} (relative)'
             break
-        if abs(old_cost - ev.cost) <= ftol * old_cost:
+        if small_decrease:
             converged, message = True, f'relative cost decrease below {ftol:g}'
             break
     return OptimizationResult(params=tf.to_c(z), evaluation=ev, iterations=it, history=history, converged=converged,
