@@ -125,11 +125,16 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
     else:
         section = points[i0:i1 + 1]
         centred = section - section.mean(axis=0)
-        cov = centred.T @ centred
-        evals, evecs = np.linalg.eigh(cov)
-        d = evecs[:, -1]
+        (a, b), (_, c) = (centred.T @ centred).tolist()
+        # principal axis of the 2x2 scatter matrix [[a, b], [b, c]] (closed form; isotropic: the column axis)
+        if b == 0.0:
+            d = np.array([1.0, 0.0]) if a > c else np.array([0.0, 1.0])
+        else:
+            theta = 0.5 * math.atan2(2.0 * b, a - c)
+            d = np.array([math.cos(theta), math.sin(theta)])
         if np.dot(d, points[i0] - points[i1]) < 0:
             d = -d
+        return i0, d
     norm = np.linalg.norm(d)
     d = d / norm if norm > 0 else np.array([0.0, 1.0])
     return i0, d

@@ -43,18 +43,23 @@ def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     if h < 3 or w < 3:
         return image[np.minimum(r, h - 1), np.minimum(c, w - 1)].astype(np.float32)
     flat = image.reshape(-1, image.shape[2])
-    base = r * w + c
-    acc = np.zeros((len(points), image.shape[2]), np.float32)
-    for off in (-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1):
-        acc += flat[base + off]
-    return acc / 9.0
+    window = np.array([-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1], dtype=np.intp)
+    # one gather of all nine neighbours; integer sums (<= 9 * 255) are exact in float32 in any order
+    return flat[(r * w + c)[:, None] + window].sum(axis=1, dtype=np.float32) / 9.0
+
+
+def median0(values: np.ndarray) -> np.ndarray:
+    """``np.median(values, axis=0)`` (finite values) without its per-call overhead: many small arrays."""
+    s = np.sort(values, axis=0)
+    h = len(s) // 2
+    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
 
 
 def colour_sampler(image_bgr: np.ndarray):
     """``colour_of(points)``: median CIELAB (a*, b*) of the image (3x3 means) at (row, col) points;
     ``colour_of.at(points)`` gives the (n, 2) colours point by point."""
     def colour_of(points):
-        return np.median(_lab_ab(_sample(image_bgr, points)), axis=0)
+        return median0(_lab_ab(_sample(image_bgr, points)))
 
     def batch(point_sets):
         """Median colours of several point sets in one conversion (None for an empty set)."""
@@ -64,7 +69,7 @@ def colour_sampler(image_bgr: np.ndarray):
         ab = _lab_ab(_sample(image_bgr, np.vstack([np.asarray(p).reshape(-1, 2) for p in point_sets])))
         out, start = [], 0
         for n in sizes:
-            out.append(np.median(ab[start:start + n], axis=0) if n else None)
+            out.append(median0(ab[start:start + n]) if n else None)
             start += n
         return out
 
@@ -89,7 +94,7 @@ def _strand_colour(image, points, first, last, centre, width_px):
         near = d >= 1.5 * width_px
     if near.sum() < 3:
         return None
-    return np.median(_lab_ab(_sample(image, points[near])), axis=0)
+    return median0(_lab_ab(_sample(image, points[near])))
 
 
 def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
@@ -116,7 +121,7 @@ def _decide_pair(image, objects, cid, pa, pb, width_px, min_sep):
     d = np.hypot(ca[:, None, 0] - cb[None, :, 0], ca[:, None, 1] - cb[None, :, 1])
     ia, ib = np.unravel_index(np.argmin(d), d.shape)
     centre = 0.5 * (ca[ia] + cb[ib])
-    overlap = np.median(_lab_ab(_sample(image, _disc(centre, max(1.0, width_px / 3.0)))), axis=0)
+    overlap = median0(_lab_ab(_sample(image, _disc(centre, max(1.0, width_px / 3.0)))))
     col_a = _strand_colour(image, objects[oa].points, a0, a1, centre, width_px)
     col_b = _strand_colour(image, objects[ob].points, b0, b1, centre, width_px)
     spans = ((a0, a1), (b0, b1))

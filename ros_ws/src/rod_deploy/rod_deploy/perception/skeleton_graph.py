@@ -165,13 +165,13 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     touch = touched.max(axis=1)                                    # an adjacent junction node (-1: none)
     touch2 = np.where(touched >= 0, touched, np.iinfo(np.int64).max).min(axis=1)
 
-    visited = ~chain.copy()
+    visited = bytearray((~chain).view(np.uint8).tobytes())      # Python-level flags: walked one by one
     for s in np.flatnonzero(chain & (n_nb <= 1)).tolist():
         if visited[s]:
             continue
         order = _walk(s, first, second, visited)
         _add_chain(graph, order, rows, cols, touch, touch2)
-    for s in np.flatnonzero(~visited).tolist():                  # what is left is closed loops
+    for s in np.flatnonzero(np.frombuffer(visited, np.uint8) == 0).tolist():   # what is left: closed loops
         if visited[s]:
             continue
         order = _walk(s, first, second, visited)
@@ -184,17 +184,17 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
 
 def _walk(start, first, second, visited):
     order = [start]
-    visited[start] = True
+    visited[start] = 1
     prev, cur = -1, start
     while True:
-        a, b = first[cur], second[cur]
-        nxt = a if (a >= 0 and a != prev and not visited[a]) else (
-            b if (b >= 0 and b != prev and not visited[b]) else -1)
-        if nxt < 0:
-            return order
-        visited[nxt] = True
-        order.append(nxt)
-        prev, cur = cur, nxt
+        a = first[cur]
+        if a < 0 or a == prev or visited[a]:
+            a = second[cur]
+            if a < 0 or a == prev or visited[a]:
+                return order
+        visited[a] = 1
+        order.append(a)
+        prev, cur = cur, a
 
 
 def _add_chain(graph, order, rows, cols, touch, touch2):
