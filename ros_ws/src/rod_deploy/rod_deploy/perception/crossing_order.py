@@ -44,8 +44,8 @@ def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
         return image[np.minimum(r, h - 1), np.minimum(c, w - 1)].astype(np.float32)
     flat = image.reshape(-1, image.shape[2])
     window = np.array([-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1], dtype=np.intp)
-    # one gather of all nine neighbours; integer sums (<= 9 * 255) are exact in float32 in any order
-    return flat[(r * w + c)[:, None] + window].sum(axis=1, dtype=np.float32) / 9.0
+    # one gather of the nine neighbours, (9, n, channels); sums of integers (<= 9 * 255) are exact in float32
+    return flat[window[:, None] + (r * w + c)[None, :]].astype(np.float32).sum(axis=0) / 9.0
 
 
 def median0(values: np.ndarray) -> np.ndarray:
@@ -85,16 +85,16 @@ def _disc(centre: np.ndarray, radius: float) -> np.ndarray:
     return np.stack([centre[0] + dr[keep], centre[1] + dc[keep]], axis=1).astype(float)
 
 
-def _strand_colour(image, points, first, last, centre, width_px):
+def _strand_points(points, first, last, centre, width_px):
+    """The strand's own points for its colour: between 1.5 and 3.5 widths from the overlap (failing
+    that, beyond 1.5 widths); empty if fewer than three."""
     reach = int(np.ceil(4 * width_px)) + 2
     points = points[max(0, first - reach):last + reach + 1]
     d = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
     near = (d >= 1.5 * width_px) & (d <= 3.5 * width_px)
     if near.sum() < 3:
         near = d >= 1.5 * width_px
-    if near.sum() < 3:
-        return None
-    return median0(_lab_ab(_sample(image, points[near])))
+    return points[near] if near.sum() >= 3 else points[:0]
 
 
 def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
@@ -105,25 +105,27 @@ def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
     for oid, obj in enumerate(objects):
         for cid, i0, i1 in obj.passes:
             by_crossing.setdefault(cid, []).append((oid, i0, i1))
-    decisions = []
-    for cid, passes in sorted(by_crossing.items()):
-        for a in range(len(passes)):
-            for b in range(a + 1, len(passes)):
-                decisions.append(_decide_pair(image_bgr, objects, cid, passes[a], passes[b], width_px,
-                                              min_colour_separation))
-    return decisions
+    pairs = [(cid, passes[a], passes[b]) for cid, passes in sorted(by_crossing.items())
+             for a in range(len(passes)) for b in range(a + 1, len(passes))]
+    # overlap point of each pair, then the colours of all overlaps and strands in one conversion
+    centres, point_sets = [], []
+    for _, (oa, a0, a1), (ob, b0, b1) in pairs:
+        ca = objects[oa].points[a0:a1 + 1]
+        cb = objects[ob].points[b0:b1 + 1]
+        d = np.hypot(ca[:, None, 0] - cb[None, :, 0], ca[:, None, 1] - cb[None, :, 1])
+        ia, ib = np.unravel_index(np.argmin(d), d.shape)
+        centre = 0.5 * (ca[ia] + cb[ib])
+        centres.append(centre)
+        point_sets += [_disc(centre, max(1.0, width_px / 3.0)),
+                       _strand_points(objects[oa].points, a0, a1, centre, width_px),
+                       _strand_points(objects[ob].points, b0, b1, centre, width_px)]
+    colours = colour_sampler(image_bgr).batch(point_sets)
+    return [_decide_pair(cid, pa, pb, centre, *colours[3 * k:3 * k + 3], min_colour_separation)
+            for k, ((cid, pa, pb), centre) in enumerate(zip(pairs, centres))]
 
 
-def _decide_pair(image, objects, cid, pa, pb, width_px, min_sep):
+def _decide_pair(cid, pa, pb, centre, overlap, col_a, col_b, min_sep):
     (oa, a0, a1), (ob, b0, b1) = pa, pb
-    ca = objects[oa].points[a0:a1 + 1]
-    cb = objects[ob].points[b0:b1 + 1]
-    d = np.hypot(ca[:, None, 0] - cb[None, :, 0], ca[:, None, 1] - cb[None, :, 1])
-    ia, ib = np.unravel_index(np.argmin(d), d.shape)
-    centre = 0.5 * (ca[ia] + cb[ib])
-    overlap = median0(_lab_ab(_sample(image, _disc(centre, max(1.0, width_px / 3.0)))))
-    col_a = _strand_colour(image, objects[oa].points, a0, a1, centre, width_px)
-    col_b = _strand_colour(image, objects[ob].points, b0, b1, centre, width_px)
     spans = ((a0, a1), (b0, b1))
     if col_a is None or col_b is None:
         return CrossingDecision(cid, centre, (oa, ob), None, 0.0, 0.0, spans)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
+from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
 
@@ -321,7 +322,7 @@ def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
     # each piece must be one colour along (almost) all its length: not a tangle of several rods
     split = k[j]
     for part in (col[:split], col[split:]):
-        spread = np.linalg.norm(part - np.median(part, axis=0), axis=1)
+        spread = np.linalg.norm(part - median0(part), axis=1)
         if np.mean(spread < 1.5 * min_separation) < 0.8:
             return None
     return int(cut_at[j])
