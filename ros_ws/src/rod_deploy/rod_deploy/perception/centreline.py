@@ -104,10 +104,12 @@ def level_crossings(profiles: np.ndarray, offsets: np.ndarray, fraction: float, 
     below = profiles < level[:, None]
     idx = np.arange(len(profiles))
     left_below = below[:, c::-1]                             # from the path outwards to the left
-    jl = c - np.argmax(left_below, axis=1)                   # last index <= c below the level
+    dl = np.argmax(left_below, axis=1)
     right_below = below[:, c:]
-    jr = c + np.argmax(right_below, axis=1)                  # first index >= c below the level
-    valid = ~below[:, c] & left_below.any(axis=1) & right_below.any(axis=1)
+    dr = np.argmax(right_below, axis=1)
+    valid = ~below[:, c] & left_below[idx, dl] & right_below[idx, dr]     # (argmax of no True: 0)
+    jl = c - dl                                              # last index <= c below the level
+    jr = c + dr                                              # first index >= c below the level
     step = offsets[1] - offsets[0]
 
     def interp(j_lo, j_hi):
@@ -151,15 +153,19 @@ def edge_positions(profiles: np.ndarray, offsets: np.ndarray, floor: float, core
     out_l, out_r = level_crossings(profiles, offsets, 0.15, 0.5 * floor, core_px, peak)
     in_l, in_r = level_crossings(profiles, offsets, 0.6, floor, core_px, peak)
     g = np.gradient(profiles, axis=1)
-    o = offsets[None, :]
     step = offsets[1] - offsets[0]
-    win_l = (o >= out_l[:, None] - step) & (o <= in_l[:, None] + step)
-    win_r = (o >= in_r[:, None] - step) & (o <= out_r[:, None] + step)
+    # search windows [lo, hi) of offset indices: from one step outside the outer crossing to one step
+    # inside the inner one (nan: empty or open-ended, and then the row is dropped anyway)
+    lo_l, hi_l = offsets.searchsorted(out_l - step, 'left'), offsets.searchsorted(in_l + step, 'right')
+    lo_r, hi_r = offsets.searchsorted(in_r - step, 'left'), offsets.searchsorted(out_r + step, 'right')
+    j = np.arange(len(offsets), dtype=np.int32)
+    win_l = (j >= lo_l.astype(np.int32)[:, None]) & (j < hi_l.astype(np.int32)[:, None])
+    win_r = (j >= lo_r.astype(np.int32)[:, None]) & (j < hi_r.astype(np.int32)[:, None])
     jl = np.argmax(np.where(win_l, g, -np.inf), axis=1)      # steepest rise on the left
     jr = np.argmin(np.where(win_r, g, np.inf), axis=1)       # steepest fall on the right
     e_l = offsets[jl] + step * _parabolic_peak(g, jl)
     e_r = offsets[jr] + step * _parabolic_peak(g, jr)
-    bad = ~(np.isfinite(out_l) & np.isfinite(in_l) & win_l.any(axis=1) & win_r.any(axis=1))
+    bad = ~(np.isfinite(out_l) & np.isfinite(in_l) & (lo_l < hi_l) & (lo_r < hi_r))
     e_l[bad] = np.nan
     e_r[bad] = np.nan
     return e_l, e_r
