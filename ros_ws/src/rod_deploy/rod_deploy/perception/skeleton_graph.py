@@ -125,7 +125,7 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     # neighbours: pixel numbers looked up in a padded index image of the skeleton's bounding box
     r0, c0 = int(rows[0]), int(cols.min())
     r, c = rows - (r0 - 1), cols - (c0 - 1)
-    index = np.full((int(r[-1]) + 2, int(c.max()) + 2), -1, dtype=np.int64)
+    index = np.full((int(r[-1]) + 2, int(c.max()) + 2), -1, dtype=np.int32)
     index[r, c] = np.arange(n)
     nb = np.stack([index[r + dr, c + dc] for dr, dc in _OFFSETS], axis=1)
     valid = nb >= 0
