@@ -113,45 +113,56 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
     ``fit_px`` of arc, oriented towards the crossing.
     """
     points = points[:int(2 * (skip_px + fit_px)) + 3]           # only the start matters (1 px steps)
-    seg = np.hypot(*np.diff(points, axis=0).T) if len(points) > 1 else np.zeros(0)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
+    s = np.zeros(len(points))
+    if len(points) > 1:
+        d = points[1:] - points[:-1]
+        np.cumsum(np.hypot(d[:, 0], d[:, 1]), out=s[1:])
     total = s[-1]
     skip = min(skip_px, max_fraction * total)
-    i0 = min(int(np.searchsorted(s, skip)), len(points) - 1)
-    i1 = min(max(int(np.searchsorted(s, s[i0] + fit_px)), i0 + 1), len(points) - 1)
+    i0 = min(int(s.searchsorted(skip)), len(points) - 1)
+    i1 = min(max(int(s.searchsorted(s[i0] + fit_px)), i0 + 1), len(points) - 1)
     if i1 <= i0:    # a branch of one point: direction from the crossing
         i0 = max(0, len(points) - 1)
         d = points[0] - points[-1] if len(points) > 1 else np.array([0.0, 1.0])
     else:
         section = points[i0:i1 + 1]
         centred = section - section.mean(axis=0)
-        cov = centred.T @ centred
-        evals, evecs = np.linalg.eigh(cov)
-        d = evecs[:, -1]
+        (a, b), (_, c) = (centred.T @ centred).tolist()
+        # principal axis of the 2x2 scatter matrix [[a, b], [b, c]] (closed form; isotropic: the column axis)
+        if b == 0.0:
+            d = np.array([1.0, 0.0]) if a > c else np.array([0.0, 1.0])
+        else:
+            theta = 0.5 * math.atan2(2.0 * b, a - c)
+            d = np.array([math.cos(theta), math.sin(theta)])
         if np.dot(d, points[i0] - points[i1]) < 0:
             d = -d
+        return i0, d
     norm = np.linalg.norm(d)
     d = d / norm if norm > 0 else np.array([0.0, 1.0])
     return i0, d
 
 
-def attach_branch_geometry(graph: SkeletonGraph, crossing: Crossing, skip_px: float, fit_px: float,
+def attach_branch_geometry(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px: float,
                            colour_of=None):
-    """Replace ``crossing.branches`` (edge, side) tuples by :class:`Branch` objects; ``colour_of(points)``
-    (optional) gives the colour of a stretch of points."""
-    out, stretches = [], []
-    for eid, side in crossing.branches:
-        pts = graph.branch_points(eid, side)
-        i0, t = branch_geometry(pts, skip_px, fit_px)
-        stretch = pts[i0:i0 + int(np.ceil(fit_px)) + 1]
-        stretches.append(stretch if len(stretch) >= 3 else stretch[:0])
-        out.append(Branch(eid, side, pts[i0].copy(), i0, t))
-    if colour_of is not None:
+    """Replace every crossing's ``branches`` (edge, side) tuples by :class:`Branch` objects;
+    ``colour_of(points)`` (optional) gives the colour of a stretch of points (all stretches in one batch
+    if it has ``batch``)."""
+    branches, stretches = [], []
+    for crossing in crossings:
+        out = []
+        for eid, side in crossing.branches:
+            pts = graph.branch_points(eid, side)
+            i0, t = branch_geometry(pts, skip_px, fit_px)
+            stretch = pts[i0:i0 + int(np.ceil(fit_px)) + 1]
+            stretches.append(stretch if len(stretch) >= 3 else stretch[:0])
+            out.append(Branch(eid, side, pts[i0].copy(), i0, t))
+        crossing.branches = out
+        branches += out
+    if colour_of is not None and branches:
         colours = (colour_of.batch(stretches) if hasattr(colour_of, 'batch')
                    else [colour_of(p) if len(p) else None for p in stretches])
-        for b, c in zip(out, colours):
+        for b, c in zip(branches, colours):
             b.colour = c
-    crossing.branches = out
 
 
 def _turn(ax: float, ay: float, bx: float, by: float) -> float:
@@ -230,7 +241,7 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penal
 def pair_crossings(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px: float, colour_of=None,
                    min_colour_separation: float = 12.0):
     """Attach branch geometry to every crossing and pair its branches by minimal bending energy."""
+    attach_branch_geometry(graph, crossings, skip_px, fit_px, colour_of)
     for c in crossings:
-        attach_branch_geometry(graph, c, skip_px, fit_px, colour_of)
         c.pairs, c.energy = minimal_energy_pairing(c.branches, min_colour_separation=min_colour_separation)
     return crossings

@@ -92,21 +92,24 @@ def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray,
 
 
 def level_crossings(profiles: np.ndarray, offsets: np.ndarray, fraction: float, floor: float,
-                    core_px: float):
+                    core_px: float, peak: np.ndarray | None = None):
     """Sub-pixel offsets of the nearest crossings, left and right of the path, of ``fraction`` of each
-    profile's peak within ``core_px`` of the path (at least ``floor``); nan where there is none."""
+    profile's peak within ``core_px`` of the path (at least ``floor``); nan where there is none.
+    ``peak``: that peak per profile, if already known."""
     k = profiles.shape[1]
     c = k // 2
-    core = np.abs(offsets) <= core_px
-    peak = profiles[:, core].max(axis=1)
+    if peak is None:
+        peak = _core_peak(profiles, offsets, core_px)
     level = np.maximum(fraction * peak, floor)
     below = profiles < level[:, None]
     idx = np.arange(len(profiles))
-    left_below = below[:, :c + 1]
-    jl = c - np.argmax(left_below[:, ::-1], axis=1)          # last index <= c below the level
+    left_below = below[:, c::-1]                             # from the path outwards to the left
+    dl = np.argmax(left_below, axis=1)
     right_below = below[:, c:]
-    jr = c + np.argmax(right_below, axis=1)                  # first index >= c below the level
-    valid = left_below.any(axis=1) & right_below.any(axis=1) & (jl < c) & (jr > c)
+    dr = np.argmax(right_below, axis=1)
+    valid = ~below[:, c] & left_below[idx, dl] & right_below[idx, dr]     # (argmax of no True: 0)
+    jl = c - dl                                              # last index <= c below the level
+    jr = c + dr                                              # first index >= c below the level
     step = offsets[1] - offsets[0]
 
     def interp(j_lo, j_hi):
@@ -115,15 +118,22 @@ def level_crossings(profiles: np.ndarray, offsets: np.ndarray, fraction: float, 
         denom[np.abs(denom) < 1e-6] = 1e-6
         return offsets[j_lo] + step * (level - p_lo) / denom
 
-    o_l = interp(jl, np.clip(jl + 1, 0, k - 1))
-    o_r = interp(np.clip(jr - 1, 0, k - 1), jr)
+    o_l = interp(jl, np.minimum(jl + 1, k - 1))
+    o_r = interp(np.maximum(jr - 1, 0), jr)
     o_l[~valid] = np.nan
     o_r[~valid] = np.nan
     return o_l, o_r
 
 
+def _core_peak(profiles: np.ndarray, offsets: np.ndarray, core_px: float) -> np.ndarray:
+    """Maximum of each profile within ``core_px`` of the path (offsets ascending, so a slice)."""
+    core = np.flatnonzero(np.abs(offsets) <= core_px)
+    return profiles[:, core[0]:core[-1] + 1].max(axis=1)
+
+
 def _parabolic_peak(g: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Sub-sample offset of the maximum of each row of ``g`` near index ``j`` (parabola through 3)."""
+    """Sub-sample offset of the maximum of each row of ``g`` near index ``j`` (parabola through 3); the
+    same for the minimum (``-g`` gives exactly the same result)."""
     idx = np.arange(len(g))
     jm = np.clip(j - 1, 0, g.shape[1] - 1)
     jp = np.clip(j + 1, 0, g.shape[1] - 1)
@@ -139,21 +149,23 @@ def edge_positions(profiles: np.ndarray, offsets: np.ndarray, floor: float, core
     steepest evidence change (the physical boundary for a flat ink stroke, whose half-maximum it is, and
     for a shaded round rod, whose dim flanks a fixed fraction of the peak would cut off), searched between
     the crossings of 15 % and 60 % of the peak. nan where an edge is not found."""
-    out_l, out_r = level_crossings(profiles, offsets, 0.15, 0.5 * floor, core_px)
-    in_l, in_r = level_crossings(profiles, offsets, 0.6, floor, core_px)
+    peak = _core_peak(profiles, offsets, core_px)
+    out_l, out_r = level_crossings(profiles, offsets, 0.15, 0.5 * floor, core_px, peak)
+    in_l, in_r = level_crossings(profiles, offsets, 0.6, floor, core_px, peak)
     g = np.gradient(profiles, axis=1)
-    o = offsets[None, :]
     step = offsets[1] - offsets[0]
-    win_l = (o >= out_l[:, None] - step) & (o <= in_l[:, None] + step)
-    win_r = (o >= in_r[:, None] - step) & (o <= out_r[:, None] + step)
-    gl = np.where(win_l, g, -np.inf)
-    gr = np.where(win_r, -g, -np.inf)
-    jl = np.argmax(gl, axis=1)
-    jr = np.argmax(gr, axis=1)
-    e_l = offsets[jl] + step * _parabolic_peak(np.where(np.isfinite(gl), gl, g), jl)
-    e_r = offsets[jr] + step * _parabolic_peak(np.where(np.isfinite(gr), gr, -g), jr)
-    bad = ~(np.isfinite(out_l) & np.isfinite(out_r) & np.isfinite(in_l) & np.isfinite(in_r))
-    bad |= ~win_l.any(axis=1) | ~win_r.any(axis=1)
+    # search windows [lo, hi) of offset indices: from one step outside the outer crossing to one step
+    # inside the inner one (nan: empty or open-ended, and then the row is dropped anyway)
+    lo_l, hi_l = offsets.searchsorted(out_l - step, 'left'), offsets.searchsorted(in_l + step, 'right')
+    lo_r, hi_r = offsets.searchsorted(in_r - step, 'left'), offsets.searchsorted(out_r + step, 'right')
+    j = np.arange(len(offsets), dtype=np.int32)
+    win_l = (j >= lo_l.astype(np.int32)[:, None]) & (j < hi_l.astype(np.int32)[:, None])
+    win_r = (j >= lo_r.astype(np.int32)[:, None]) & (j < hi_r.astype(np.int32)[:, None])
+    jl = np.argmax(np.where(win_l, g, -np.inf), axis=1)      # steepest rise on the left
+    jr = np.argmin(np.where(win_r, g, np.inf), axis=1)       # steepest fall on the right
+    e_l = offsets[jl] + step * _parabolic_peak(g, jl)
+    e_r = offsets[jr] + step * _parabolic_peak(g, jr)
+    bad = ~(np.isfinite(out_l) & np.isfinite(in_l) & (lo_l < hi_l) & (lo_r < hi_r))
     e_l[bad] = np.nan
     e_r[bad] = np.nan
     return e_l, e_r

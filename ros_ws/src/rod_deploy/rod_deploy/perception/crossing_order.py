@@ -43,18 +43,23 @@ def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     if h < 3 or w < 3:
         return image[np.minimum(r, h - 1), np.minimum(c, w - 1)].astype(np.float32)
     flat = image.reshape(-1, image.shape[2])
-    base = r * w + c
-    acc = np.zeros((len(points), image.shape[2]), np.float32)
-    for off in (-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1):
-        acc += flat[base + off]
-    return acc / 9.0
+    window = np.array([-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1], dtype=np.intp)
+    # one gather of the nine neighbours, (9, n, channels); sums of integers (<= 9 * 255) are exact in float32
+    return flat[window[:, None] + (r * w + c)[None, :]].astype(np.float32).sum(axis=0) / 9.0
+
+
+def median0(values: np.ndarray) -> np.ndarray:
+    """``np.median(values, axis=0)`` (finite values) without its per-call overhead: many small arrays."""
+    s = np.sort(values, axis=0)
+    h = len(s) // 2
+    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
 
 
 def colour_sampler(image_bgr: np.ndarray):
     """``colour_of(points)``: median CIELAB (a*, b*) of the image (3x3 means) at (row, col) points;
     ``colour_of.at(points)`` gives the (n, 2) colours point by point."""
     def colour_of(points):
-        return np.median(_lab_ab(_sample(image_bgr, points)), axis=0)
+        return median0(_lab_ab(_sample(image_bgr, points)))
 
     def batch(point_sets):
         """Median colours of several point sets in one conversion (None for an empty set)."""
@@ -64,7 +69,7 @@ def colour_sampler(image_bgr: np.ndarray):
         ab = _lab_ab(_sample(image_bgr, np.vstack([np.asarray(p).reshape(-1, 2) for p in point_sets])))
         out, start = [], 0
         for n in sizes:
-            out.append(np.median(ab[start:start + n], axis=0) if n else None)
+            out.append(median0(ab[start:start + n]) if n else None)
             start += n
         return out
 
@@ -80,16 +85,16 @@ def _disc(centre: np.ndarray, radius: float) -> np.ndarray:
     return np.stack([centre[0] + dr[keep], centre[1] + dc[keep]], axis=1).astype(float)
 
 
-def _strand_colour(image, points, first, last, centre, width_px):
+def _strand_points(points, first, last, centre, width_px):
+    """The strand's own points for its colour: between 1.5 and 3.5 widths from the overlap (failing
+    that, beyond 1.5 widths); empty if fewer than three."""
     reach = int(np.ceil(4 * width_px)) + 2
     points = points[max(0, first - reach):last + reach + 1]
     d = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
     near = (d >= 1.5 * width_px) & (d <= 3.5 * width_px)
     if near.sum() < 3:
         near = d >= 1.5 * width_px
-    if near.sum() < 3:
-        return None
-    return np.median(_lab_ab(_sample(image, points[near])), axis=0)
+    return points[near] if near.sum() >= 3 else points[:0]
 
 
 def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
@@ -100,25 +105,27 @@ def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
     for oid, obj in enumerate(objects):
         for cid, i0, i1 in obj.passes:
             by_crossing.setdefault(cid, []).append((oid, i0, i1))
-    decisions = []
-    for cid, passes in sorted(by_crossing.items()):
-        for a in range(len(passes)):
-            for b in range(a + 1, len(passes)):
-                decisions.append(_decide_pair(image_bgr, objects, cid, passes[a], passes[b], width_px,
-                                              min_colour_separation))
-    return decisions
+    pairs = [(cid, passes[a], passes[b]) for cid, passes in sorted(by_crossing.items())
+             for a in range(len(passes)) for b in range(a + 1, len(passes))]
+    # overlap point of each pair, then the colours of all overlaps and strands in one conversion
+    centres, point_sets = [], []
+    for _, (oa, a0, a1), (ob, b0, b1) in pairs:
+        ca = objects[oa].points[a0:a1 + 1]
+        cb = objects[ob].points[b0:b1 + 1]
+        d = np.hypot(ca[:, None, 0] - cb[None, :, 0], ca[:, None, 1] - cb[None, :, 1])
+        ia, ib = np.unravel_index(np.argmin(d), d.shape)
+        centre = 0.5 * (ca[ia] + cb[ib])
+        centres.append(centre)
+        point_sets += [_disc(centre, max(1.0, width_px / 3.0)),
+                       _strand_points(objects[oa].points, a0, a1, centre, width_px),
+                       _strand_points(objects[ob].points, b0, b1, centre, width_px)]
+    colours = colour_sampler(image_bgr).batch(point_sets)
+    return [_decide_pair(cid, pa, pb, centre, *colours[3 * k:3 * k + 3], min_colour_separation)
+            for k, ((cid, pa, pb), centre) in enumerate(zip(pairs, centres))]
 
 
-def _decide_pair(image, objects, cid, pa, pb, width_px, min_sep):
+def _decide_pair(cid, pa, pb, centre, overlap, col_a, col_b, min_sep):
     (oa, a0, a1), (ob, b0, b1) = pa, pb
-    ca = objects[oa].points[a0:a1 + 1]
-    cb = objects[ob].points[b0:b1 + 1]
-    d = np.hypot(ca[:, None, 0] - cb[None, :, 0], ca[:, None, 1] - cb[None, :, 1])
-    ia, ib = np.unravel_index(np.argmin(d), d.shape)
-    centre = 0.5 * (ca[ia] + cb[ib])
-    overlap = np.median(_lab_ab(_sample(image, _disc(centre, max(1.0, width_px / 3.0)))), axis=0)
-    col_a = _strand_colour(image, objects[oa].points, a0, a1, centre, width_px)
-    col_b = _strand_colour(image, objects[ob].points, b0, b1, centre, width_px)
     spans = ((a0, a1), (b0, b1))
     if col_a is None or col_b is None:
         return CrossingDecision(cid, centre, (oa, ob), None, 0.0, 0.0, spans)

@@ -16,8 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from skimage.morphology import skeletonize
 
 END = 'end'
@@ -114,9 +112,8 @@ def skeleton_of(mask: np.ndarray) -> np.ndarray:
 def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     """Turn a one-pixel-wide skeleton into a :class:`SkeletonGraph`.
 
-    Works on the skeleton pixels only (neighbours found by binary search in their sorted linear
-    indices), so the cost grows with the skeleton length, not the image size; one Python step per pixel
-    orders the chains."""
+    Works on the skeleton pixels and their bounding box only, so the cost grows with the skeleton, not
+    the image; one Python step per pixel orders the chains."""
     sk = np.asarray(skeleton, dtype=bool)
     shape = sk.shape
     flat = np.flatnonzero(sk)                   # (much faster than np.nonzero on a sparse bool image)
@@ -125,28 +122,26 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     n = rows.size
     if n == 0:
         return graph
-    width = shape[1] + 2
-    lin = (rows + 1).astype(np.int64) * width + (cols + 1)          # sorted (row-major order)
-    nb = np.full((n, 8), -1, dtype=np.int64)
-    for k, (dr, dc) in enumerate(_OFFSETS):
-        q = lin + dr * width + dc
-        pos = np.minimum(np.searchsorted(lin, q), n - 1)
-        nb[:, k] = np.where(lin[pos] == q, pos, -1)
+    # neighbours: pixel numbers looked up in a padded index image of the skeleton's bounding box
+    r0, c0 = int(rows[0]), int(cols.min())
+    r, c = rows - (r0 - 1), cols - (c0 - 1)
+    index = np.full((int(r[-1]) + 2, int(c.max()) + 2), -1, dtype=np.int32)
+    index[r, c] = np.arange(n)
+    nb = np.stack([index[r + dr, c + dc] for dr, dc in _OFFSETS], axis=1)
     valid = nb >= 0
     count = valid.sum(axis=1)
     junction = count >= 3
 
-    # junction pixels -> junction nodes (8-connected clusters)
+    # junction pixels -> junction nodes (8-connected clusters, numbered in pixel order)
     jl = np.full(n, -1, dtype=np.int64)
     jpix = np.flatnonzero(junction)
     if jpix.size:
         a_idx, k_idx = np.nonzero(valid[jpix])
-        src = jpix[a_idx]
         dst = nb[jpix[a_idx], k_idx]
         both = junction[dst]
-        adj = coo_matrix((np.ones(int(both.sum())), (src[both], dst[both])), shape=(n, n)).tocsr()
-        sub = adj[jpix][:, jpix]
-        n_nodes, lab = connected_components(sub, directed=False)
+        ordinal = np.full(n, -1, dtype=np.int64)
+        ordinal[jpix] = np.arange(jpix.size)
+        n_nodes, lab = _cluster(jpix.size, a_idx[both].tolist(), ordinal[dst[both]].tolist())
         jl[jpix] = lab
         cnt = np.bincount(lab, minlength=n_nodes)
         mr = np.bincount(lab, weights=rows[jpix], minlength=n_nodes) / cnt
@@ -165,16 +160,18 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     touch = touched.max(axis=1)                                    # an adjacent junction node (-1: none)
     touch2 = np.where(touched >= 0, touched, np.iinfo(np.int64).max).min(axis=1)
 
-    visited = ~chain.copy()
+    visited = ~chain
     for s in np.flatnonzero(chain & (n_nb <= 1)).tolist():
         if visited[s]:
             continue
-        order = _walk(s, first, second, visited)
+        order = _walk(s, first, second)
+        visited[order] = True
         _add_chain(graph, order, rows, cols, touch, touch2)
     for s in np.flatnonzero(~visited).tolist():                  # what is left is closed loops
         if visited[s]:
             continue
-        order = _walk(s, first, second, visited)
+        order = _walk(s, first, second)
+        visited[order] = True
         pts = np.stack([rows[order], cols[order]], axis=1).astype(np.float64)
         if len(order) > 2:
             pts = np.vstack([pts, pts[:1]])
@@ -182,17 +179,39 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     return graph
 
 
-def _walk(start, first, second, visited):
+def _cluster(n: int, a: list, b: list):
+    """Connected components of ``n`` items joined by the pairs (a[i], b[i]): (count, label per item),
+    labels numbered in the order of each component's first item."""
+    parent = list(range(n))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, j in zip(a, b):
+        ri, rj = root(i), root(j)
+        if ri != rj:
+            parent[max(ri, rj)] = min(ri, rj)
+    labels, first_seen = [], {}
+    for i in range(n):
+        labels.append(first_seen.setdefault(root(i), len(first_seen)))
+    return len(first_seen), np.array(labels, dtype=np.int64)
+
+
+def _walk(start, first, second):
+    """Pixel indices along a chain from ``start`` (an end, or any pixel of a closed loop). Chain pixels
+    have at most two chain neighbours (``first``, ``second``; -1: none), so the walk only has to avoid
+    going back, and stops at the chain's end or back at its start."""
     order = [start]
-    visited[start] = True
     prev, cur = -1, start
     while True:
-        a, b = first[cur], second[cur]
-        nxt = a if (a >= 0 and a != prev and not visited[a]) else (
-            b if (b >= 0 and b != prev and not visited[b]) else -1)
-        if nxt < 0:
+        nxt = first[cur]
+        if nxt == prev:
+            nxt = second[cur]
+        if nxt < 0 or nxt == start:
             return order
-        visited[nxt] = True
         order.append(nxt)
         prev, cur = cur, nxt
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
+from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
 
@@ -182,21 +183,25 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
     cos_max = np.cos(max_turn_rad)
     objects = list(objects)
     joins = []
+    end_cache = {}        # id(object) -> (object, its two ends); the object's points never change here
     while True:
-        ends, stretches = [], []
-        for oid, o in enumerate(objects):
-            if o.closed or o.length_px() < 3 * skip:
+        new_ends, stretches = [], []
+        for o in objects:
+            if id(o) in end_cache or o.closed or o.length_px() < 3 * skip:
                 continue
+            end_cache[id(o)] = (o, [])
             for last in (False, True):
                 i0, p, t = _end_geometry(o.points, last, skip, fit)
                 q = o.points[::-1] if last else o.points
                 stretches.append(q[i0:i0 + int(np.ceil(fit)) + 1])
-                ends.append([oid, last, i0, p, t, None])
-        if colour_of is not None and ends:
+                new_ends.append([last, i0, p, t, None])
+                end_cache[id(o)][1].append(new_ends[-1])
+        if colour_of is not None and new_ends:
             colours = (colour_of.batch(stretches) if hasattr(colour_of, 'batch')
                        else [colour_of(q) for q in stretches])
-            for e, c in zip(ends, colours):
-                e[5] = c
+            for e, c in zip(new_ends, colours):
+                e[4] = c
+        ends = [[oid] + e for oid, o in enumerate(objects) if id(o) in end_cache for e in end_cache[id(o)][1]]
         best = None
         for i in range(len(ends)):
             for j in range(i + 1, len(ends)):
@@ -317,7 +322,7 @@ def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
     # each piece must be one colour along (almost) all its length: not a tangle of several rods
     split = k[j]
     for part in (col[:split], col[split:]):
-        spread = np.linalg.norm(part - np.median(part, axis=0), axis=1)
+        spread = np.linalg.norm(part - median0(part), axis=1)
         if np.mean(spread < 1.5 * min_separation) < 0.8:
             return None
     return int(cut_at[j])
