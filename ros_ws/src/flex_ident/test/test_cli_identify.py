@@ -77,6 +77,32 @@ def test_run_identification_api_reports_progress(tmp_path):
     assert optimize[-1]['iteration'] == report['iterations']
 
 
+def test_warm_start_on_doubling_windows_then_the_whole_recording(tmp_path):
+    """10 s recording: warm start on its first 2.5 s and 5 s (windows shorter than 3/4 of it), then all of it;
+    the report counts every iteration and keeps the cost history of the whole recording from the initial guess."""
+    out = tmp_path / 'warm'
+    assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
+                 '--out', str(out), '--quiet']) == 0
+    report = check_report(out)
+    stages = report['data']['continuation']
+    assert [s['window_s'] for s in stages] == [2.5, 5.0]
+    history = report['history']
+    assert history[0]['iteration'] == 0 and history[0]['parameters'] == {'k_theta': 1.0, 'k_phi': 1.0}
+    assert history[1]['iteration'] == sum(s['iterations'] for s in stages)
+    assert history[1]['parameters'] == stages[-1]['parameters']
+    assert report['iterations'] == history[-1]['iteration'] > history[1]['iteration'] - 1
+    assert report['cost']['initial'] == history[0]['cost'] > history[-1]['cost']
+
+    cold = tmp_path / 'cold'
+    assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
+                 '--out', str(cold), '--quiet', '--no-continuation', '--no-plots']) == 0
+    cold_report = json.loads((cold / 'report.json').read_text())
+    assert 'continuation' not in cold_report['data']
+    assert cold_report['error_before'] == report['error_before']
+    for name in ('k_theta', 'k_phi'):      # both reach the same optimum
+        assert cold_report['parameters'][name] == pytest.approx(report['parameters'][name], rel=2e-3)
+
+
 @pytest.mark.slow
 def test_identify_12_link_example_within_targets(tmp_path):
     out = tmp_path / 'out'

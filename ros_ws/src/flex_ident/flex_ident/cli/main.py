@@ -1,7 +1,8 @@
 """flex-ident: command-line identification of a flexible object's stiffness from a recorded bag.
 
     flex-ident identify --bag BAG --experiment EXP.yaml --out DIR [--method lm|lbfgsb|steepest]
-                        [--cost end_effector|joint_angles] [--max-iterations N] [--no-plots] [--quiet]
+                        [--cost end_effector|joint_angles] [--max-iterations N] [--no-continuation] [--no-plots]
+                        [--quiet]
 
 Writes DIR/report.json (CONTRACTS.md section 3) and plots, shows a progress bar (tqdm, on stderr) and prints the
 identified parameters. On bad input it prints one line ``flex-ident: error: ...`` and exits with status 2, writing
@@ -40,6 +41,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--cost', choices=['end_effector', 'joint_angles'], default=None,
                    help='tracking cost (default: the experiment\'s, else end_effector as in the paper)')
     p.add_argument('--max-iterations', type=int, default=None, help='optimizer iteration limit')
+    p.add_argument('--no-continuation', action='store_true',
+                   help='optimize on the whole recording at once (default: warm start on its first 2.5, 5, 10 ... s, '
+                        'which keeps soft loops and wide motions out of local minima)')
     p.add_argument('--no-plots', action='store_true', help='write report.json only')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return parser
@@ -60,13 +64,15 @@ class _ProgressBar:
     def __call__(self, info: dict):
         stage = info.get('stage', '')
         if self.bar is None:
-            if not self.enabled or stage != 'optimize':
+            if not self.enabled or stage not in ('optimize', 'warm start'):
                 return
             from tqdm import tqdm
             self.bar = tqdm(total=self.total, desc='optimize', unit='it', file=sys.stderr, dynamic_ncols=True,
                             disable=None, leave=True)
-        self.bar.set_description(stage)
-        if stage == 'optimize' and 'iteration' in info:
+        self.bar.set_description(f'warm start on the first {info["window_s"]:g} s' if stage == 'warm start' else stage)
+        if stage == 'warm start':
+            self.bar.refresh()
+        elif stage == 'optimize' and 'iteration' in info:
             self.bar.n = min(int(info['iteration']), self.bar.total)
             post = {}
             if 'cost' in info:
@@ -96,6 +102,7 @@ def identify_command(args) -> int:
     try:
         run = identify(args.bag, args.experiment, args.out,
                        IdentificationSettings(method=method, cost=args.cost, max_iterations=args.max_iterations,
+                                              continuation=not args.no_continuation,
                                               plots=not args.no_plots), progress=bar)
     finally:
         bar.close()

@@ -29,7 +29,7 @@ from ..mechanics.static_equilibrium import EquilibriumError, static_equilibrium
 from ..mechanics.variational_integrator import stable_substeps
 from .feedback import FeedbackWeights, lqr_tracking_feedback
 from .measurement import load_measurements
-from .optimizers import canonical_method, optimize
+from .optimizers import RESCUE_COST_FRACTION, canonical_method, optimize
 from .problem import IdentificationProblem
 from .report import build_report, write_report
 
@@ -48,6 +48,8 @@ class IdentificationSettings:
     feedback: FeedbackWeights = FeedbackWeights()
     torque_hold: str = 'midpoint'               # effort over [t_k, t_{k+1}]: 'midpoint' average or 'zoh' (tau_k)
     plots: bool = True
+    continuation: bool = True                   # warm start on the first 2.5 s, 5 s, 10 s, ... of the recording
+    first_window_s: float = 2.5
 
 
 @dataclass
@@ -115,19 +117,38 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     p0 = np.array([p.initial for p in specs], float)
     max_iterations = settings.max_iterations or (experiment.identify.max_iterations if method == 'lm' else None)
 
-    evaluations = {}
+    initial = problem.evaluate(p0, jacobian=False)
+    if not initial.ok:
+        raise IdentificationInputError(f'the model cannot be simulated at the initial parameters: {initial.failure} '
+                                       f'(bag {bag_path}, experiment {experiment.path})')
+    stages = []
+    start = p0
+    if settings.continuation:
+        start, stages = warm_start(problem, p0, method, settings.first_window_s, progress)
+    offset = sum(stage['iterations'] for stage in stages)
+    evaluations = {0: initial}
 
     def on_iteration(info):
-        evaluations[info['iteration']] = info.pop('evaluation')
-        _notify(progress, stage='optimize', iteration=info['iteration'], cost=info['cost'],
+        iteration = info['iteration'] + offset
+        evaluations[iteration] = info.pop('evaluation')
+        _notify(progress, stage='optimize', iteration=iteration, cost=info['cost'],
                 fraction=info['fraction'], parameters=dict(zip(problem.free, info['params'])))
 
-    _notify(progress, stage='optimize', iteration=0, fraction=0.0)
+    _notify(progress, stage='optimize', iteration=offset, fraction=0.0)
     try:
-        result = optimize(problem, p0, method, max_iterations, on_iteration)
+        # the rescue scan compares with the user's initial guess, whatever the warm start did
+        result = optimize(problem, start, method, max_iterations, on_iteration,
+                          rescue_above=RESCUE_COST_FRACTION * initial.cost)
     except RuntimeError as exc:
         raise IdentificationInputError(f'{exc} (bag {bag_path}, experiment {experiment.path})') from None
-    initial = evaluations[0]
+    if stages:
+        for entry in result.history:
+            entry['iteration'] += offset
+        result.history.insert(0, {'iteration': 0, 'cost': float(initial.cost), 'params': [float(v) for v in p0],
+                                  'evaluations': 1})
+        result.iterations += offset
+        result.evaluations += 1 + sum(stage['simulations'] for stage in stages)
+        notes['continuation'] = stages
     _notify(progress, stage='report', fraction=0.0)
     report = build_report(problem, result, initial, experiment, bag_path, method, notes,
                           wall_time_s=time.monotonic() - t_start)
@@ -141,6 +162,31 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     write_report(out, report)
     _notify(progress, stage='done', fraction=1.0)
     return IdentificationRun(report=report, model=model, problem=problem, result=result, initial=initial)
+
+
+def warm_start(problem, p0, method, first_window_s=2.5, progress: Progress | None = None):
+    """Horizon continuation: identify on the first 2.5 s, 5 s, 10 s, ... of the recording (windows shorter than 3/4
+    of it), each stage starting from the last one's result; returns (parameters, stages).
+
+    Far from the truth a soft loop driven through a long, wide motion moves chaotically: the cost of the whole
+    recording has many local minima and its sensitivities explode, while the cost of a short window is smooth. Each
+    doubling keeps the start inside the basin of the true parameters."""
+    data = problem.data
+    duration = float(data.t_s[-1] - data.t_s[0])
+    stages, params, window = [], np.asarray(p0, float), float(first_window_s)
+    while 0 < window < 0.75 * duration:
+        samples = int(round(window / data.dt)) + 1
+        short = problem.truncated(samples)
+        _notify(progress, stage='warm start', window_s=window, fraction=window / duration)
+        result = optimize(short, params, method, None, None,
+                          rescue_above='auto' if not stages else None)
+        params = result.params
+        stages.append({'window_s': window, 'iterations': int(result.iterations), 'simulations': int(result.evaluations),
+                       'parameters': dict(zip(problem.free, (float(v) for v in params))),
+                       'cost': float(result.evaluation.cost), 'message': result.message})
+        problem.substeps = max(problem.substeps, short.substeps)
+        window *= 2
+    return params, stages
 
 
 def run_identification(bag_path: str, experiment_path: str, out_dir: str, method: str = 'lm',

@@ -50,17 +50,19 @@ def _record(history, iteration, ev, n_evals, callback, max_iterations):
         callback(dict(entry, fraction=min(1.0, iteration / max(1, max_iterations)), evaluation=ev))
 
 
-#: LM damping (relative to the Gauss-Newton curvature) above which a small step says "the linear model is not
-#: trusted here", not "converged"
-MU_COLLAPSED = 1.0
+#: an optimizer about to stop while the cost is still above this fraction of the initial cost scans for a better start
+RESCUE_COST_FRACTION = 0.5
 
 
 def _small(step, z, xtol):
     return np.max(np.abs(step)) < xtol * (1.0 + np.max(np.abs(z)))
 
 
-def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5, ftol=1e-6):
-    """Bounded Levenberg-Marquardt in z space. ``problem.evaluate(params, jacobian=True)``."""
+def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5, ftol=1e-6, rescue_above='auto'):
+    """Bounded Levenberg-Marquardt in z space. ``problem.evaluate(params, jacobian=True)``.
+
+    rescue_above: about to stop with the cost still above this value, scan the parameters on a log scale once and go
+    on from the best point ('auto': RESCUE_COST_FRACTION x the initial cost; None: never)."""
     tf = problem.transform
     lo, hi = tf.z_bounds()
     z = np.clip(tf.to_z(p0), lo, hi)
@@ -71,6 +73,8 @@ def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5
     problem.discretization_changed = False
     history = []
     _record(history, 0, ev, n_evals, callback, max_iterations)
+    if rescue_above == 'auto':
+        rescue_above = RESCUE_COST_FRACTION * ev.cost
     mu = 1e-3
     converged, message = False, f'stopped after {max_iterations} iterations'
     it = 0
@@ -116,36 +120,32 @@ def levenberg_marquardt(problem, p0, max_iterations=30, callback=None, xtol=1e-5
                 mu = mu * max(1 / 3, 1 - (2 * rho - 1) ** 3) if rho > 0.25 else mu * 2
                 break
             mu *= 4.0
-        stuck = not accepted or (mu > MU_COLLAPSED and (_small(step, z, xtol)
-                                                      or ev.cost - trial.cost <= ftol * ev.cost))
-        if stuck and not rescued and ev.cost > 0.5 * history[0]['cost']:
-            # stuck near the start: far from the truth the loop can move chaotically and its sensitivities
-            # explode (only tiny LM steps succeed); scan the whole parameter vector on a log scale and restart from
-            # the best point
+        if accepted:
+            small_step = _small(step, z, xtol)
+            small_decrease = ev.cost - trial.cost <= ftol * ev.cost
+            it += 1
+            z, ev = z_new, trial
+            _record(history, it, ev, n_evals, callback, max_iterations)
+            if not (small_step or small_decrease):
+                continue
+            stop = f'step below {xtol:g} (relative)' if small_step else f'relative cost decrease below {ftol:g}'
+        else:
+            stop = 'no further decrease (local minimum at the resolution of the cost)'
+        if not rescued and rescue_above is not None and ev.cost > rescue_above:
+            # stopping while the fit is hardly better than the initial guess: far from the truth the loop can
+            # move chaotically, its sensitivities explode and only tiny LM steps succeed. Scan the whole parameter
+            # vector on a log scale and go on from the best point, once.
             rescued = True
-            best = _log_scan(problem, z, lo, hi, ev)
-            n_evals += best[1]
-            if best[0] is not None:
-                z_new, trial = best[0]
-                step = z_new - z
-                accepted = True
+            best, n = _log_scan(problem, z, lo, hi, ev)
+            n_evals += n
+            if best is not None:
+                it += 1
+                z, ev = best
                 mu = 1e-3
-        if not accepted:
-            converged, message = True, 'no further decrease (local minimum at the resolution of the cost)'
-            break
-        it += 1
-        old_cost = ev.cost
-        z, ev = z_new, trial
-        _record(history, it, ev, n_evals, callback, max_iterations)
-        small_step, small_decrease = _small(step, z, xtol), abs(old_cost - ev.cost) <= ftol * old_cost
-        if (small_step or small_decrease) and mu > MU_COLLAPSED and not rescued:
-            continue                       # tiny only because the trust region collapsed: not converged (yet)
-        if small_step:
-            converged, message = True, f'step below {xtol:g} (relative)'
-            break
-        if small_decrease:
-            converged, message = True, f'relative cost decrease below {ftol:g}'
-            break
+                _record(history, it, ev, n_evals, callback, max_iterations)
+                continue
+        converged, message = True, stop
+        break
     return OptimizationResult(params=tf.to_c(z), evaluation=ev, iterations=it, history=history, converged=converged,
                               message=message, evaluations=n_evals)
 
@@ -256,10 +256,11 @@ def steepest_descent(problem, p0, max_iterations=100, callback=None, alpha=0.1, 
                               message=message, evaluations=n_evals)
 
 
-def optimize(problem, p0, method='lm', max_iterations=None, callback=None) -> OptimizationResult:
+def optimize(problem, p0, method='lm', max_iterations=None, callback=None, rescue_above='auto') -> OptimizationResult:
+    """rescue_above: see :func:`levenberg_marquardt` (the other methods have no rescue)."""
     method = canonical_method(method)
     if method == 'lm':
-        return levenberg_marquardt(problem, p0, max_iterations or 30, callback)
+        return levenberg_marquardt(problem, p0, max_iterations or 30, callback, rescue_above=rescue_above)
     if method == 'lbfgsb':
         return lbfgsb(problem, p0, max_iterations or 100, callback)
     return steepest_descent(problem, p0, max_iterations or 100, callback)

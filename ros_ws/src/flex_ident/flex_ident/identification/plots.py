@@ -28,10 +28,13 @@ def write_plots(out_dir, problem, result, initial, evaluations: dict) -> list[Pa
     its = [h['iteration'] for h in result.history]
     costs = [h['cost'] for h in result.history]
     ax.semilogy(its, costs, 'o-', color='tab:blue')
-    ax.set_xlabel('iteration')
+    if len(its) > 1 and its[1] - its[0] > 1:      # warm start on short windows between the first two points
+        ax.axvspan(its[0], its[1], color='0.9', zorder=0)
+        ax.text(0.5 * (its[0] + its[1]), costs[0], 'warm start on\nshort windows', ha='center', va='top', fontsize=8)
+    ax.set_xlabel('iteration (whole recording; shaded: iterations on its first seconds)')
     ax.set_ylabel('cost J [m$^2$]' if problem.cost.kind == 'end_effector' else 'cost J [rad$^2$]')
     final = ', '.join(f'{n} = {v:.4g}' for n, v in zip(names, result.params))
-    ax.set_title(f'Cost per iteration ({len(its) - 1} iterations)\n{final}', fontsize=9)
+    ax.set_title(f'Cost per iteration ({its[-1]} iterations)\n{final}', fontsize=9)
     ax.grid(True, which='both', alpha=0.3)
     fig.tight_layout()
     fig.savefig(paths[0], dpi=120)

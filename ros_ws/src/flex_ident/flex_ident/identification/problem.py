@@ -93,11 +93,20 @@ class IdentificationProblem:
         self.max_substeps = int(max_substeps)
         self.discretization_changed = False
         self.cost = TrackingCost.create(model, data.theta, cost_kind)
+        self.torque_hold = torque_hold
         tau = np.asarray(data.tau, float)
         self.tau_interval = tau[:-1] if torque_hold == 'zoh' else 0.5 * (tau[:-1] + tau[1:])
         self._q_guess = np.zeros(model.n)
         self._q_guess[model.measured_coords] = data.theta[0]
         self.evaluations = 0
+
+    def truncated(self, samples: int) -> 'IdentificationProblem':
+        """The same problem on the first ``samples`` samples of the recording (same feedback and discretization)."""
+        d = self.data
+        short = MeasuredData(d.t_s[:samples], d.names, d.theta[:samples], d.tau[:samples])
+        return IdentificationProblem(self.model, short, self.free, self.transform.lower, self.transform.upper,
+                                     self.feedback, substeps=self.substeps, cost_kind=self.cost.kind,
+                                     torque_hold=self.torque_hold, max_substeps=self.max_substeps)
 
     def coef(self, params) -> np.ndarray:
         c = self.base_coef.copy()
