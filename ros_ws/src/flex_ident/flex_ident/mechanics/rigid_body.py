@@ -7,37 +7,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from robot_bridge.geometry import rot_x, rot_y, rot_z, rpy_matrix  # noqa: F401  (URDF conventions, shared)
+
 
 def skew(w) -> np.ndarray:
     """[w]x, the 3x3 matrix with [w]x v = w x v."""
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def rot_x(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def rot_axis(axis, angle_rad: float) -> np.ndarray:
     """Rotation by ``angle_rad`` about the unit vector ``axis`` (Rodrigues)."""
     k = skew(np.asarray(axis, dtype=float))
     return np.eye(3) + np.sin(angle_rad) * k + (1.0 - np.cos(angle_rad)) * (k @ k)
-
-
-def rpy_matrix(rpy) -> np.ndarray:
-    """URDF roll-pitch-yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = (float(v) for v in rpy)
-    return rot_z(y) @ rot_y(p) @ rot_x(r)
 
 
 def transform(R=None, p=None) -> np.ndarray:
