@@ -251,3 +251,17 @@ def test_jittered_stamps_are_resampled_onto_a_uniform_grid():
     assert data.dt == pytest.approx(0.01, rel=0.05)
     np.testing.assert_allclose(np.diff(data.t_s), data.dt)
     np.testing.assert_allclose(data.theta[:, 0], np.sin(data.t_s), atol=1e-4)
+
+
+@pytest.mark.parametrize('noise_rad, drift_rad_s, at_rest', [(0.0, 0.0, True), (1e-3, 0.0, True),
+                                                            (0.0, 0.05, False), (2e-4, 0.05, False)])
+def test_rest_check_tells_encoder_noise_from_motion(tmp_path, noise_rad, drift_rad_s, at_rest):
+    """The contract's recordings start at rest; a report warns otherwise. Noise alone is not motion."""
+    from flex_ident.identification.measurement import load_measurements
+    from robot_bridge.bagio.contract import JointRecording
+    rng = np.random.default_rng(5)
+    t = np.arange(200) * 0.01
+    pos = 0.3 + drift_rad_s * t[:, None] + noise_rad * rng.normal(size=(200, 2))
+    write_joint_recording(tmp_path / 'bag', JointRecording(t, ['a', 'b'], pos, None, np.zeros((200, 2))))
+    _, notes = load_measurements(tmp_path / 'bag', ['a', 'b'])
+    assert notes['starts_at_rest'] is at_rest, notes

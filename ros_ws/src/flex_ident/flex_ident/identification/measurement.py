@@ -49,10 +49,13 @@ def load_measurements(bag_path, joints, window=None) -> tuple[MeasuredData, dict
     rec = read_joint_recording(str(bag_path), joints=list(joints), window=window, require_effort=True)
     data = uniform_grid(rec.t_s, rec.position, rec.effort, f'bag {bag_path}')
     data.names = list(rec.names)
-    n_rest = max(2, int(round(REST_CHECK_S / data.dt)))
-    motion = float(np.max(np.abs(data.theta[:n_rest] - data.theta[0])))
+    first = data.theta[:max(3, int(round(REST_CHECK_S / data.dt)))]
+    motion = float(np.max(np.abs(first - np.median(first, axis=0))))
+    # encoder noise (from sample-to-sample differences, which a slow motion hardly changes) must not read as motion
+    noise = float(np.median(np.std(np.diff(first, axis=0), axis=0)) / np.sqrt(2.0))
+    tolerance = max(REST_TOLERANCE_RAD, 6.0 * noise)
     notes = {'samples': int(len(data.t_s)), 'sample_period_s': data.dt,
              'window_s': [float(rec.t_s[0]), float(rec.t_s[-1])],
-             'starts_at_rest': bool(motion <= REST_TOLERANCE_RAD),
-             'initial_motion_rad': motion}
+             'starts_at_rest': bool(motion <= tolerance),
+             'initial_motion_rad': motion, 'rest_tolerance_rad': tolerance}
     return data, notes
