@@ -11,6 +11,8 @@ kappa_bar follows the released code's sign: positive turns towards -y and puts t
 import json
 import math
 
+import numpy as np
+
 from .main import CliError
 
 METHODS = {
@@ -45,6 +47,11 @@ def register(subparsers):
     p.set_defaults(func=run)
 
 
+#: the solver is checked up to here (benchmarks and tests); beyond it the shooting may overflow
+TESTED_LS_MAX = 200.0
+TESTED_KAPPA_MAX = 4.0
+
+
 def run(args):
     from ..planning.optimal_grasp import RELEASED_CONNECTIVE_OFFSET, optimal_grasp
     from ..planning.suspended_rod import BVPError
@@ -58,10 +65,15 @@ def run(args):
         raise CliError(f'--ks must be positive, got {ks}')
     offset = RELEASED_CONNECTIVE_OFFSET if args.convention == 'released' else 0.0
     try:
-        g = optimal_grasp(ls, kappa, ks, method=METHODS[args.method], check_stability=not args.no_stability,
-                          connective_offset=offset)
+        with np.errstate(all='ignore'):     # a shot that overflows is a failed trial, reported below if none works
+            g = optimal_grasp(ls, kappa, ks, method=METHODS[args.method], check_stability=not args.no_stability,
+                              connective_offset=offset)
     except BVPError as exc:
-        raise CliError(f'no optimal grasp found for ls={ls}, kappa={kappa}, ks={ks}: {exc}') from exc
+        hint = ''
+        if ls > TESTED_LS_MAX or abs(kappa) > TESTED_KAPPA_MAX:
+            hint = (f' (checked range: ls_bar up to {TESTED_LS_MAX:g}, |kappa_bar| up to {TESTED_KAPPA_MAX:g}; the '
+                    f'training dataset covers ls_bar 0.5-100, kappa_bar 0-4)')
+        raise CliError(f'no optimal grasp found for ls={ls}, kappa={kappa}, ks={ks}: {exc}{hint}') from exc
     out = g.as_dict()
     if args.details:
         out.update({'inputs': {'ls_bar': ls, 'kappa_bar': kappa, 'ks_bar': ks if math.isfinite(ks) else 'inf'},
