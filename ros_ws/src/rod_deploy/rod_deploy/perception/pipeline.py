@@ -57,6 +57,7 @@ class PerceptionConfig:
     y_merge_factor: float = 8.0          # three-way junction pairs joined by chains shorter than this * w
     skip_factor: float = 0.75            # branch anchors this many widths (+ 2 px) out of the crossing
     max_gap_factor: float = 3.0          # facing ends at most this many widths apart are joined (0: never)
+    max_hidden_factor: float = 20.0      # ... and up to this many if the rod could be hidden under others
     refine: bool = True                  # edge-centred sub-pixel refinement
     min_colour_separation: float = 12.0  # CIELAB a*b* difference needed to decide over/under
     max_pixels: int = 12_000_000         # larger images are processed downscaled
@@ -152,13 +153,14 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     pair_crossings(graph, crossings, config.skip_factor * ws + 2.0, 1.5 * ws + 2.0, colour_of,
                    config.min_colour_separation)
     traced = trace_objects(graph, crossings)
-    traced, gaps = join_gaps(traced, ws, len(crossings), config.max_gap_factor, colour_of=colour_of,
-                             min_colour_separation=config.min_colour_separation)
     for o in traced:
         o.points = to_full(o.points)
     traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
+    traced, gaps = join_gaps(traced, w, len(crossings), config.max_gap_factor, colour_of=colour_full,
+                             min_colour_separation=config.min_colour_separation,
+                             covered=lambda p: _lookup(seg.mask, p), max_hidden_factor=config.max_hidden_factor)
     zones = [(to_full(c), f * r) for c, r in _crossing_zones(crossings, ws)]
-    zones += [(to_full(g.centre), f * (0.5 * g.length_px + 0.5 * ws)) for g in gaps]
+    zones += [(g.centre, 0.5 * g.length_px + 0.5 * w) for g in gaps]
     traced = [o for o in traced if o.length_px() >= min_length]
     if not traced:
         raise PerceptionError(f'no stroke or rod found: every candidate is shorter than {min_length:.0f} px')
@@ -198,11 +200,16 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
 
 
-def _median_evidence(evidence, points):
+def _lookup(image, points):
+    """``image`` at the pixels nearest to (row, col) ``points`` (clipped to the image)."""
     p = np.round(points).astype(int)
-    p[:, 0] = np.clip(p[:, 0], 0, evidence.shape[0] - 1)
-    p[:, 1] = np.clip(p[:, 1], 0, evidence.shape[1] - 1)
-    return float(np.median(evidence[p[:, 0], p[:, 1]]))
+    p[:, 0] = np.clip(p[:, 0], 0, image.shape[0] - 1)
+    p[:, 1] = np.clip(p[:, 1], 0, image.shape[1] - 1)
+    return image[p[:, 0], p[:, 1]]
+
+
+def _median_evidence(evidence, points):
+    return float(np.median(_lookup(evidence, points)))
 
 
 def _crossing_zones(crossings, w):
