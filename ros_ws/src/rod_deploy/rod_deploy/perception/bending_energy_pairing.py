@@ -1,7 +1,8 @@
 """Pairing of the branches at a crossing by minimal bending energy (mBEST, Choi et al. 2023, sec. III-C).
 
-A crossing is a cluster of skeleton junctions: one junction where two strands cross steeply, or two
-three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle.
+A crossing is a cluster of skeleton junctions: one junction where two strands cross steeply, two
+three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle, or
+several junctions around the overlap of three strands (see :func:`find_crossings`).
 Each branch leaving the cluster gets an anchor a distance ``skip_px`` out along it (beyond the part of the
 skeleton that the junction bends) and a unit tangent pointing into the crossing. Joining branch i to
 branch j by the polyline (a_i - t_i, a_i, a_j, a_j - t_j) costs the discrete bending energy of its two
