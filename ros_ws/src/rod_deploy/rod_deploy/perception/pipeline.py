@@ -61,7 +61,7 @@ class PerceptionConfig:
     y_merge_factor: float = 8.0          # odd junction clusters joined along chains shorter than this * w
     skip_factor: float = 0.75            # branch anchors this many widths (+ 2 px) out of the crossing
     max_gap_factor: float = 3.0          # facing ends at most this many widths apart are joined (0: never)
-    max_hidden_factor: float = 20.0      # ... and up to this many if the rod could be hidden under others
+    max_hidden_factor: float = 20.0      # ... up to this many if hidden under other rods (0: never)
     refine: bool = True                  # edge-centred sub-pixel refinement
     min_colour_separation: float = 12.0  # CIELAB a*b* difference needed to decide over/under
     max_pixels: int = 12_000_000         # larger images are processed downscaled

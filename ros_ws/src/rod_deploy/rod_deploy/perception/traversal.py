@@ -168,7 +168,7 @@ def _reindex_passes(passes, n, reverse, offset, keep_lo, keep_hi):
 
 def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_factor: float = 3.0,
               max_turn_rad: float = np.radians(30.0), colour_of=None, min_colour_separation: float = 12.0,
-              covered=None, max_hidden_factor: float = 12.0, max_hidden_turn_rad: float = np.radians(60.0)):
+              covered=None, max_hidden_factor: float = 20.0, max_hidden_turn_rad: float = np.radians(60.0)):
     """Join pairs of open ends of different objects that face each other across a short gap.
 
     An end qualifies when the gap (between the ends' anchors, ``0.75 w + 2`` px back from the ends, since a
@@ -185,7 +185,7 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
     fit = 1.5 * width_px + 2.0
     max_gap = max_gap_factor * width_px + 2.0 * skip
     cos_max = np.cos(max_turn_rad)
-    max_hidden = max_hidden_factor * width_px + 2.0 * skip if covered is not None else 0.0
+    max_hidden = max_hidden_factor * width_px + 2.0 * skip if covered is not None and max_hidden_factor > 0 else 0.0
     cos_hidden = np.cos(max_hidden_turn_rad)
     objects = list(objects)
     joins = []
