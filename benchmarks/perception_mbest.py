@@ -14,7 +14,8 @@
    ``../shared/reference/rod_deployment/patterns`` is present, random smooth curves) drawn at several widths
    on paper with shading and noise; centreline RMS [px] in both directions, end error, Eq. 17 mean.
 3. Random rod scenes (1-3 rods of random colour, width and shape on dark or textured tables): how often
-   the object count is right, and the DICE.
+   the object count is right, and the DICE; the development set (seed 7) and a held-out set drawn the
+   same way from another seed (4242), which no rule was tuned on.
 """
 from __future__ import annotations
 
@@ -124,8 +125,8 @@ def bench_drawn(shared: Path):
     return rows
 
 
-def bench_random_scenes(n: int):
-    rng = np.random.default_rng(7)
+def bench_random_scenes(n: int, seed: int = 7):
+    rng = np.random.default_rng(seed)
     palette = [(90, 90, 230), (60, 220, 200), (200, 200, 60), (50, 200, 50), (230, 120, 200), (40, 140, 250)]
     rows = []
     for trial in range(n):
@@ -146,7 +147,7 @@ def bench_random_scenes(n: int):
             found = len(res.objects)
         except ValueError:
             dice, found = 0.0, 0
-        rows.append(dict(trial=trial, rods=k, found=found, dice=dice, textured=textured))
+        rows.append(dict(trial=trial, rods=k, found=found, dice=dice, textured=textured, seed=seed))
     return rows
 
 
@@ -207,20 +208,24 @@ def markdown(mbest, drawn, scenes, repeats, data):
     lines += ['', f"RMS: max {max(r['rms'] for r in ok):.3f} px, median {np.median([r['rms'] for r in ok]):.3f} px "
               f"over {len(ok)} strokes; {sum(r['rms'] <= 1.0 for r in ok)}/{len(drawn)} within the 1 px bar.", '']
     if scenes:
-        right = sum(r['found'] == r['rods'] for r in scenes)
         lines += ['## Random synthetic rod scenes', '',
-                  f'{len(scenes)} scenes of 1-3 rods (widths 5-16 px, minimum bend radius 4 widths, random '
-                  'colours, dark or textured table, 700 x 500 px); ground truth = pixels at least half covered, '
-                  'the rod drawn last on top.', '',
-                  f'Right object count: {right}/{len(scenes)}; DICE median '
-                  f'{np.median([r["dice"] for r in scenes]):.4f}, '
-                  f'mean {np.mean([r["dice"] for r in scenes]):.4f}; scenes with the right count: DICE mean '
-                  f'{np.mean([r["dice"] for r in scenes if r["found"] == r["rods"]] or [0]):.4f}.', '',
-                  '| rods | scenes | right count | DICE mean |', '|---|---|---|---|']
-        for k in (1, 2, 3):
-            rs = [r for r in scenes if r['rods'] == k]
-            lines.append(f"| {k} | {len(rs)} | {sum(r['found'] == k for r in rs)} | "
-                         f"{np.mean([r['dice'] for r in rs]):.4f} |")
+                  'Scenes of 1-3 rods (widths 5-16 px, minimum bend radius 4 widths, random distinct colours, '
+                  'dark or textured table, 700 x 500 px); ground truth = pixels at least half covered, the rod '
+                  'drawn last on top. Development set: seed 7 (failures inspected to find the rules; two more '
+                  'seeds, 2027 and 99, were used to check them); held-out set: seed 4242, run only once the '
+                  'rules were fixed.', '',
+                  '| set | rods | scenes | right count | DICE mean | DICE median | DICE mean, right count |',
+                  '|---|---|---|---|---|---|---|']
+        for seed, name in ((7, 'development'), (4242, 'held out')):
+            rows = [r for r in scenes if r['seed'] == seed]
+            for k in (1, 2, 3, None):
+                rs = [r for r in rows if k is None or r['rods'] == k]
+                if not rs:
+                    continue
+                right = [r['dice'] for r in rs if r['found'] == r['rods']]
+                lines.append(f"| {name} | {k or 'all'} | {len(rs)} | {len(right)} | "
+                             f"{np.mean([r['dice'] for r in rs]):.4f} | {np.median([r['dice'] for r in rs]):.4f} | "
+                             f"{np.mean(right or [0]):.4f} |")
         lines.append('')
     return '\n'.join(lines) + '\n'
 
@@ -230,14 +235,15 @@ def main():
     parser.add_argument('--data', default=str(ROOT.parent / 'shared' / 'data' / 'dlo_images'))
     parser.add_argument('--shared', default=str(ROOT.parent / 'shared'))
     parser.add_argument('--repeats', type=int, default=20)
-    parser.add_argument('--scenes', type=int, default=30)
+    parser.add_argument('--scenes', type=int, default=30, help='development scenes (seed 7)')
+    parser.add_argument('--heldout-scenes', type=int, default=60, help='held-out scenes (seed 4242)')
     parser.add_argument('--out', default=str(ROOT / 'benchmarks' / 'results' / 'perception_mbest.md'))
     parser.add_argument('--json', help='also write the raw numbers as JSON')
     args = parser.parse_args()
     data = Path(args.data)
     mbest = bench_mbest(data, args.repeats) if (data / 'mBEST').is_dir() else []
     drawn = bench_drawn(Path(args.shared))
-    scenes = bench_random_scenes(args.scenes)
+    scenes = bench_random_scenes(args.scenes, 7) + bench_random_scenes(args.heldout_scenes, 4242)
     text = markdown(mbest, drawn, scenes, args.repeats, os.path.relpath(data, ROOT))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(text)

@@ -1,9 +1,10 @@
-"""Skeleton graph: ends, junctions, chains, spur pruning, closed loops."""
+"""Skeleton graph: ends, junctions, chains, spur and pinhole-loop pruning, closed loops."""
 import cv2
 import numpy as np
 
-from rod_deploy.perception.skeleton_graph import (END, JUNCTION, build_skeleton_graph, dissolve_pass_through_junctions,
-                                                  prune_spurs, remove_small_parts, skeleton_of)
+from rod_deploy.perception.skeleton_graph import (END, JUNCTION, Node, SkeletonGraph, build_skeleton_graph,
+                                                  dissolve_pass_through_junctions, prune_spurs, remove_small_parts,
+                                                  skeleton_of)
 
 
 def kinds(graph):
@@ -57,3 +58,19 @@ def test_a_ring_is_one_closed_edge_and_specks_go():
 def test_empty_skeleton():
     g = build_skeleton_graph(np.zeros((10, 10), bool))
     assert g.live_edges() == [] and g.live_nodes() == []
+
+
+def test_pinhole_loop_at_a_junction_is_pruned():
+    # a T of three chains plus a 6 px loop from the junction back to itself (the skeleton around a speck
+    # of background caught where two rods meet): the loop goes, the T stays
+    g = SkeletonGraph([], [], (100, 100))
+    g.nodes += [Node(JUNCTION, np.array([50.0, 50.0])), Node(END, np.array([50.0, 0.0])),
+                Node(END, np.array([50.0, 99.0])), Node(END, np.array([99.0, 50.0]))]
+    for end, pts in ((1, np.stack([np.full(51, 50.0), np.arange(50.0, -1, -1)], axis=1)),
+                     (2, np.stack([np.full(50, 50.0), np.arange(50.0, 100)], axis=1)),
+                     (3, np.stack([np.arange(50.0, 100), np.full(50, 50.0)], axis=1))):
+        g.add_edge(pts, 0, end)
+    g.add_edge(np.array([[50, 50], [49, 49], [48, 50], [48, 51], [49, 52], [50, 51], [50, 50]], float), 0, 0)
+    prune_spurs(g, 8)
+    assert all(e.u != e.v for _, e in g.live_edges())
+    assert len(g.live_edges()) == 3 and len(g.nodes[0].edges) == 3 and g.nodes[0].kind == JUNCTION

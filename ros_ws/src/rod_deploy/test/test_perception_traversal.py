@@ -103,3 +103,39 @@ def test_rods_touching_end_to_end_are_told_apart_by_colour():
     assert len(res.objects) == 2
     for curve in (a, b):
         assert min(centreline_rms(o.points, curve)['rms_px'] for o in res.objects) < 3.0
+
+
+def straight(p0, p1, n=300):
+    return np.stack([np.linspace(p0[0], p1[0], n), np.linspace(p0[1], p1[1], n)], axis=1)
+
+
+def assert_each_rod_found(res, curves, max_rms_px):
+    assert len(res.objects) == len(curves)
+    for curve in curves:
+        assert min(centreline_rms(o.points, curve)['rms_px'] for o in res.objects) < max_rms_px
+
+
+def test_three_rods_crossing_near_one_point_are_one_crossing():
+    # the skeleton splits such a crossing into several junction clusters around the overlap (two of
+    # them three-way): they have to be joined into one crossing of six branches
+    def through(centre, degrees, half=220):
+        d = np.array([np.sin(np.radians(degrees)), np.cos(np.radians(degrees))])
+        return straight(np.array(centre) - half * d, np.array(centre) + half * d)
+
+    curves = [through((250, 300), 0), through((244, 296), 60), through((256, 306), 120)]
+    img = drawn(curves, [11.0, 12.0, 10.0], [PINK, YELLOW, (200, 200, 60)], shape=(500, 600),
+                background=(15, 15, 15), noise_std=3, blur_sigma=0.8)
+    assert_each_rod_found(perceive(img), curves, 1.0)
+
+
+def test_rod_end_lying_along_another_rod_does_not_cut_it():
+    # a yellow rod comes in at a shallow angle and its last 130 px lie along (on top of) a cyan rod: the
+    # cyan rod is hidden there, and its two visible parts (same colour, the stretch between them covered)
+    # are one rod
+    lower = straight((250, 40), (250, 560), 520)
+    slope = np.radians(15)
+    upper = np.vstack([straight((250 + 180 * np.sin(slope), 200 - 180 * np.cos(slope)), (254, 200), 200)[:-1],
+                       straight((254, 200), (254, 330), 130)])
+    img = drawn([lower, upper], [10.0, 12.0], [(200, 200, 60), YELLOW], shape=(500, 600),
+                background=(15, 15, 15), noise_std=3, blur_sigma=0.8)
+    assert_each_rod_found(perceive(img), [lower, upper], 2.5)

@@ -1,7 +1,8 @@
 """Pairing of the branches at a crossing by minimal bending energy (mBEST, Choi et al. 2023, sec. III-C).
 
-A crossing is a cluster of skeleton junctions: one junction where two strands cross steeply, or two
-three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle.
+A crossing is a cluster of skeleton junctions: one junction where two strands cross steeply, two
+three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle, or
+several junctions around the overlap of three strands (see :func:`find_crossings`).
 Each branch leaving the cluster gets an anchor a distance ``skip_px`` out along it (beyond the part of the
 skeleton that the junction bends) and a unit tangent pointing into the crossing. Joining branch i to
 branch j by the polyline (a_i - t_i, a_i, a_j, a_j - t_j) costs the discrete bending energy of its two
@@ -21,6 +22,7 @@ straight, and the open curve is the likelier reading. Units: pixels.
 """
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass, field
 from itertools import combinations
@@ -58,9 +60,16 @@ class Crossing:
         return [i for i in range(len(self.branches)) if i not in paired]
 
 
-def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float) -> list:
-    """Group junctions into crossings: junctions joined by a chain shorter than ``short_px``, and pairs of
-    three-way junctions joined by a chain shorter than ``y_merge_px`` (a shallow X split in two Ys)."""
+def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max_branches: int = 8) -> list:
+    """Group junctions into crossings.
+
+    Junctions joined by a chain shorter than ``short_px`` form one cluster. A cluster with an odd number
+    of branches forces an object end at a junction (one branch is left unpaired), which a rod end
+    lying on another rod does, but which is more often half of a crossing the skeleton split in two: a
+    shallow X becomes two Ys, three rods crossing near one point become several clusters around it. So
+    odd clusters are joined to the nearest other odd cluster reachable along chains of total length below
+    ``y_merge_px`` (through even clusters on the way, which join too), closest first, as long as the
+    result has at most ``max_branches`` branches."""
     junctions = [nid for nid, n in graph.live_nodes() if n.kind == JUNCTION]
     parent = {nid: nid for nid in junctions}
 
@@ -71,7 +80,7 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float) -> 
         return a
 
     internal = set()
-    candidates = []
+    links = []            # chains between two different junctions, not (yet) internal
     for eid, e in graph.live_edges():
         if e.closed or e.u == e.v or e.u not in parent or e.v not in parent:
             continue
@@ -79,17 +88,25 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float) -> 
         if length < short_px:
             internal.add(eid)
             parent[find(e.u)] = find(e.v)
-        elif length < y_merge_px and graph.degree(e.u) == 3 and graph.degree(e.v) == 3:
-            candidates.append((length, eid))
-    # Y pairs, closest first; each Y joins at most one other Y
-    merged = set()
-    for _, eid in sorted(candidates):
-        e = graph.edges[eid]
-        if e.u in merged or e.v in merged or find(e.u) == find(e.v):
-            continue
-        merged.update((e.u, e.v))
-        internal.add(eid)
-        parent[find(e.u)] = find(e.v)
+        elif length < y_merge_px:
+            links.append((length, eid))
+
+    count = {}            # cluster root -> number of branches
+    for nid in junctions:
+        r = find(nid)
+        count[r] = count.get(r, 0) + sum(1 for eid, _ in graph.nodes[nid].edges if eid not in internal)
+    while True:
+        path = _closest_odd_pair(graph, links, find, count, y_merge_px, max_branches)
+        if path is None:
+            break
+        roots = _path_roots(graph, find, path)
+        merged = sum(count.pop(r) for r in roots) - 2 * len(path)
+        internal.update(path)
+        root = roots.pop()
+        for r in roots:
+            parent[r] = root
+        count[root] = merged
+        links = [(length, eid) for length, eid in links if eid not in internal]
 
     groups: dict[int, list] = {}
     for nid in junctions:
@@ -103,6 +120,44 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float) -> 
         crossings.append(Crossing(nodes=sorted(node_set), internal_edges=inner,
                                   branches=branches, centre=centre))
     return crossings
+
+
+def _closest_odd_pair(graph, links, find, count, max_px, max_branches):
+    """The shortest path of chains (``links``: (length, edge id)) between two odd clusters, through even
+    clusters only, shorter than ``max_px`` in all and leaving at most ``max_branches`` branches when
+    merged; None if there is none. Dijkstra from every odd cluster (there are a handful)."""
+    adjacent: dict[int, list] = {}
+    for length, eid in links:
+        e = graph.edges[eid]
+        a, b = find(e.u), find(e.v)
+        if a != b:
+            adjacent.setdefault(a, []).append((length, eid, b))
+            adjacent.setdefault(b, []).append((length, eid, a))
+    best_path, best_d = None, max_px
+    for src in adjacent:
+        if count[src] % 2 == 0:
+            continue
+        dist = {src: 0.0}
+        heap = [(0.0, src, ())]
+        while heap:
+            d, r, path = heapq.heappop(heap)
+            if d > dist[r] or d >= best_d:
+                continue
+            if r != src and count[r] % 2:
+                merged = sum(count[x] for x in _path_roots(graph, find, path)) - 2 * len(path)
+                if merged <= max_branches:
+                    best_path, best_d = path, d
+                continue
+            for length, eid, nxt in adjacent[r]:
+                nd = d + length
+                if nd < min(best_d, dist.get(nxt, np.inf)):
+                    dist[nxt] = nd
+                    heapq.heappush(heap, (nd, nxt, path + (eid,)))
+    return best_path
+
+
+def _path_roots(graph, find, path):
+    return {find(x) for eid in path for x in (graph.edges[eid].u, graph.edges[eid].v)}
 
 
 def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fraction: float = 0.45):

@@ -6,15 +6,19 @@ sub-pixel refinement.
     least ``half_resolution_min_width_px`` wide) and its graph (:mod:`.skeleton_graph`); spurs shorter than
     ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
     objects whose centreline evidence has a median below the segmentation threshold (texture blobs that
-    only the local edge rule pulled into the mask);
- 3. crossings (:mod:`.bending_energy_pairing`): junctions closer than ``merge_factor`` w, and pairs of
-    three-way junctions closer than ``y_merge_factor`` w, form one crossing; branches paired by minimal
-    bending energy (anchors ``skip_factor`` w + 2 px out, tangents over 1.5 w), with a penalty for joining
-    branches of clearly different colour (``min_colour_separation``);
- 4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths); ends
-    of different objects facing each other across at most ``max_gap_factor`` w are joined (a rod cut by
-    the shadow of the rod above it, a pen skip); an object whose colour changes for good along its length
-    is cut there (rods of different colours touching end to end);
+    only the local edge rule pulled into the mask), and so are loops from a junction back to itself no
+    longer than a spur (pinholes in the mask);
+ 3. crossings (:mod:`.bending_energy_pairing`): junctions closer than ``merge_factor`` w form one
+    cluster, and clusters with an odd number of branches are joined to the nearest other odd one within
+    ``y_merge_factor`` w along the skeleton (a shallow X split into two Ys, three rods crossing near one
+    point); branches paired by minimal bending energy (anchors ``skip_factor`` w + 2 px out, tangents over
+    1.5 w), with a penalty for joining branches of clearly different colour (``min_colour_separation``);
+ 4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths); an
+    object whose colour changes for good along its length is cut there (rods of different colours
+    touching end to end, a rod end lying along another rod); then ends of different objects of one
+    colour facing each other across at most ``max_gap_factor`` w are joined (a rod cut by the shadow of
+    the rod above it, a pen skip), and across up to ``max_hidden_factor`` w if the stretch between them
+    is covered by the mask (a rod hidden under another one along a length);
  5. over/under at every crossing from colour where the strands differ (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary, arc-length resampling every ``step_px``.
@@ -54,9 +58,10 @@ class PerceptionConfig:
     spur_factor: float = 1.2             # spurs shorter than spur_factor * w + 2 px are pruned
     min_length_factor: float = 4.0       # objects shorter than this many widths are dropped
     merge_factor: float = 0.75           # junctions joined by chains shorter than this * w: one crossing
-    y_merge_factor: float = 8.0          # three-way junction pairs joined by chains shorter than this * w
+    y_merge_factor: float = 8.0          # odd junction clusters joined along chains shorter than this * w
     skip_factor: float = 0.75            # branch anchors this many widths (+ 2 px) out of the crossing
     max_gap_factor: float = 3.0          # facing ends at most this many widths apart are joined (0: never)
+    max_hidden_factor: float = 20.0      # ... up to this many if hidden under other rods (0: never)
     refine: bool = True                  # edge-centred sub-pixel refinement
     min_colour_separation: float = 12.0  # CIELAB a*b* difference needed to decide over/under
     max_pixels: int = 12_000_000         # larger images are processed downscaled
@@ -152,13 +157,14 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     pair_crossings(graph, crossings, config.skip_factor * ws + 2.0, 1.5 * ws + 2.0, colour_of,
                    config.min_colour_separation)
     traced = trace_objects(graph, crossings)
-    traced, gaps = join_gaps(traced, ws, len(crossings), config.max_gap_factor, colour_of=colour_of,
-                             min_colour_separation=config.min_colour_separation)
     for o in traced:
         o.points = to_full(o.points)
     traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
+    traced, gaps = join_gaps(traced, w, len(crossings), config.max_gap_factor, colour_of=colour_full,
+                             min_colour_separation=config.min_colour_separation,
+                             covered=lambda p: _lookup(seg.mask, p), max_hidden_factor=config.max_hidden_factor)
     zones = [(to_full(c), f * r) for c, r in _crossing_zones(crossings, ws)]
-    zones += [(to_full(g.centre), f * (0.5 * g.length_px + 0.5 * ws)) for g in gaps]
+    zones += [(g.centre, 0.5 * g.length_px + 0.5 * w) for g in gaps]
     traced = [o for o in traced if o.length_px() >= min_length]
     if not traced:
         raise PerceptionError(f'no stroke or rod found: every candidate is shorter than {min_length:.0f} px')
@@ -198,11 +204,16 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
 
 
-def _median_evidence(evidence, points):
+def _lookup(image, points):
+    """``image`` at the pixels nearest to (row, col) ``points`` (clipped to the image)."""
     p = np.round(points).astype(int)
-    p[:, 0] = np.clip(p[:, 0], 0, evidence.shape[0] - 1)
-    p[:, 1] = np.clip(p[:, 1], 0, evidence.shape[1] - 1)
-    return float(np.median(evidence[p[:, 0], p[:, 1]]))
+    p[:, 0] = np.clip(p[:, 0], 0, image.shape[0] - 1)
+    p[:, 1] = np.clip(p[:, 1], 0, image.shape[1] - 1)
+    return image[p[:, 0], p[:, 1]]
+
+
+def _median_evidence(evidence, points):
+    return float(np.median(_lookup(evidence, points)))
 
 
 def _crossing_zones(crossings, w):

@@ -248,12 +248,23 @@ def remove_node_if_isolated(graph: SkeletonGraph, node_id: int):
 
 def prune_spurs(graph: SkeletonGraph, max_length_px: float, max_rounds: int = 3) -> int:
     """Remove end branches shorter than ``max_length_px`` that hang off a junction (thinning artefacts at
-    flat ends and boundary bumps). At a junction where every branch is short, the longest stays.
+    flat ends and boundary bumps), and loops from a junction back to itself shorter than that (the
+    skeleton around a pinhole in the mask, e.g. a speck of background caught where two rods meet: a rod's
+    own loop is at least pi w round). At a junction where every branch is short, the longest stays.
     Returns the number of edges removed."""
     removed = 0
     for _ in range(max_rounds):
         spurs_at: dict[int, list[int]] = {}
+        loops = 0
         for eid, e in graph.live_edges():
+            if e.u == e.v and not e.closed and e.length_px() < max_length_px:
+                graph.remove_edge(eid)
+                loops += 1
+                node = graph.nodes[e.u]
+                if len(node.edges) == 1:
+                    node.kind = END
+                remove_node_if_isolated(graph, e.u)
+                continue
             if e.closed or e.u == e.v:
                 continue
             ku, kv = graph.nodes[e.u].kind, graph.nodes[e.v].kind
@@ -263,7 +274,8 @@ def prune_spurs(graph: SkeletonGraph, max_length_px: float, max_rounds: int = 3)
                 continue
             junction = e.v if ku == END else e.u
             spurs_at.setdefault(junction, []).append(eid)
-        if not spurs_at:
+        removed += loops
+        if not spurs_at and not loops:
             break
         for junction, spurs in spurs_at.items():
             incident = {eid for eid, _ in graph.nodes[junction].edges}

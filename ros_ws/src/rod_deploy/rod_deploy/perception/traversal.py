@@ -167,13 +167,17 @@ def _reindex_passes(passes, n, reverse, offset, keep_lo, keep_hi):
 
 
 def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_factor: float = 3.0,
-              max_turn_rad: float = np.radians(30.0), colour_of=None, min_colour_separation: float = 12.0):
+              max_turn_rad: float = np.radians(30.0), colour_of=None, min_colour_separation: float = 12.0,
+              covered=None, max_hidden_factor: float = 20.0, max_hidden_turn_rad: float = np.radians(60.0)):
     """Join pairs of open ends of different objects that face each other across a short gap.
 
     An end qualifies when the gap (between the ends' anchors, ``0.75 w + 2`` px back from the ends, since a
     trace ending at a junction bends into it) is at most ``max_gap_factor`` w and both end tangents point
     along the gap within ``max_turn_rad`` and (if ``colour_of`` is given) their colours agree; the
-    straightest joins go first. A joined object
+    straightest joins go first. With ``covered(points)`` (True where the image shows a rod) a longer
+    stretch, up to ``max_hidden_factor`` w with turns up to ``max_hidden_turn_rad``, also qualifies when
+    the whole connector runs over rods: a rod hidden under another one along a length (an end lying along
+    it, a shallow crossing), whose two visible parts are of one colour. A joined object
     records the gap as a pass, and the object passing closest to the gap's middle (if any, within w)
     records a pass there too, so that the over/under decision covers the occlusion.
     Returns (objects, gap joins)."""
@@ -181,6 +185,8 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
     fit = 1.5 * width_px + 2.0
     max_gap = max_gap_factor * width_px + 2.0 * skip
     cos_max = np.cos(max_turn_rad)
+    max_hidden = max_hidden_factor * width_px + 2.0 * skip if covered is not None and max_hidden_factor > 0 else 0.0
+    cos_hidden = np.cos(max_hidden_turn_rad)
     objects = list(objects)
     joins = []
     end_cache = {}        # id(object) -> (object, its two ends); the object's points never change here
@@ -211,12 +217,14 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
                     continue
                 chord = pb - pa
                 d = float(np.linalg.norm(chord))
-                if d > max_gap or d < 1e-6:
+                if d > max(max_gap, max_hidden) or d < 1e-6:
                     continue
                 u = chord / d
                 ca, cb = float(np.dot(ta, u)), float(np.dot(-tb, u))
-                if ca < cos_max or cb < cos_max:
-                    continue
+                if d > max_gap or ca < cos_max or cb < cos_max:
+                    if (ca < cos_hidden or cb < cos_hidden or d > max_hidden or ca_ is None or cb_ is None
+                            or not covered(hermite_connector(pa, ta, pb, -tb)).all()):
+                        continue
                 cost = (1 - ca) + (1 - cb) + 0.01 * d / width_px
                 if best is None or cost < best[0]:
                     best = (cost, ends[i], ends[j], d)
