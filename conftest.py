@@ -52,10 +52,10 @@ def ros_context():
             if hasattr(node, 'close'):
                 node.close()
         executor.shutdown()
+        thread.join(timeout=5)           # the spin loop has ended before any node goes away
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=ctx)
-        thread.join(timeout=5)
 
 
 def _wait_for(predicate, timeout_s=10.0, period_s=0.01):
