@@ -90,6 +90,17 @@ class _ProgressBar:
             self.bar.close()
 
 
+def _kernels_cached() -> bool:
+    """False when numba's on-disk cache of the model kernels is missing beside the package (the first call then
+    compiles for about a minute); True when it exists or lives elsewhere (read-only install)."""
+    import os
+    from pathlib import Path
+    mechanics = Path(__file__).resolve().parents[1] / 'mechanics'
+    if not os.access(mechanics, os.W_OK):
+        return True
+    return any((mechanics / '__pycache__').glob('variational_integrator.*.nbi'))
+
+
 def identify_command(args) -> int:
     from flex_ident.identification.identify import IdentificationSettings, identify
     from flex_ident.identification.optimizers import canonical_method
@@ -99,6 +110,9 @@ def identify_command(args) -> int:
         raise ValueError(f'--max-iterations must be positive, got {args.max_iterations}')
     total = args.max_iterations or (30 if method == 'lm' else 100)
     bar = _ProgressBar(total, enabled=not args.quiet)
+    if not args.quiet and not _kernels_cached():
+        print('flex-ident: first run on this machine: compiling the model kernels (about a minute, once)',
+              file=sys.stderr, flush=True)
     try:
         run = identify(args.bag, args.experiment, args.out,
                        IdentificationSettings(method=method, cost=args.cost, max_iterations=args.max_iterations,
