@@ -37,7 +37,7 @@ from ..identification.report import parameter_covariance
 from .effects import DELAY_PARAMETER, Effect, candidate_effects, describe, reported_parameters, with_effect
 
 BIC_STRONG = 10.0
-MIN_RSS_DROP = 0.05
+MIN_RSS_DROP = 0.02
 DELAY_STEP_S = 0.002
 MAX_ROUNDS = 4
 FIT_CANDIDATES = 2          # candidates fitted per round (best predicted first)
@@ -75,7 +75,8 @@ class TimeShiftedProblem:
                 tau = self._spline(t)
             shifted = MeasuredData(d.t_s, d.names, d.theta, tau)
             lo = np.zeros(len(self.coef_free))
-            self._cache.clear() if len(self._cache) > 8 else None
+            if len(self._cache) > 8:
+                self._cache.clear()
             self._cache[key] = IdentificationProblem(self.model, shifted, self.coef_free, lo, lo + np.inf,
                                                      self.feedback, substeps=self.substeps,
                                                      cost_kind=self.cost_kind, torque_hold=self.torque_hold)
@@ -195,9 +196,22 @@ def score_screen(state: State, base: IdentificationProblem, candidates: list[Eff
     return out
 
 
-def fit_with(state: State, base: IdentificationProblem, effect: Effect, max_iterations: int = 15):
+def fit_with(state: State, base: IdentificationProblem, effect: Effect, step=None, max_iterations: int = 20):
+    """Joint fit of the current parameters and the effect's coefficients (LM), from the current optimum and the
+    effect's null value, or from the score test's Gauss-Newton ``step`` when that is better (nonsmooth effects such as
+    Coulomb friction can stall in a poor local minimum from the null value)."""
     problem = state.problem(base, [effect])
-    result = levenberg_marquardt(problem, problem.start, max_iterations=max_iterations, rescue_above=None)
+    start = problem.start
+    if step is not None:
+        cols = [problem.free.index(n) for n in effect.coefficients]
+        lo, hi = problem.transform.lower[cols], problem.transform.upper[cols]
+        trial = start.copy()
+        trial[cols] = np.clip(start[cols] + np.asarray(step, float), lo, hi)
+        a = problem.evaluate(start)
+        b = problem.evaluate(trial)
+        if b.ok and (not a.ok or b.cost < a.cost):
+            start = trial
+    result = levenberg_marquardt(problem, start, max_iterations=max_iterations, rescue_above=None)
     base.substeps = max(base.substeps, problem.substeps)
     return problem, result
 
@@ -235,7 +249,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
             if s['predicted_rss_drop'] < 0.5 * MIN_RSS_DROP:
                 continue
             e = s['effect']
-            fitted, result = fit_with(state, problem, e)
+            fitted, result = fit_with(state, problem, e, s['predicted_step'])
             ev = result.evaluation
             if not ev.ok:
                 continue
@@ -267,6 +281,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
             'error_before': _errors(fitted, current),
             'error_after': _errors(fitted, ev),
             'declared_parameters_after': {n: float(result.params[fitted.free.index(n)]) for n in problem.free},
+            'declared_parameter_std': {n: float(std_map[n]) for n in problem.free},
         }
         added.append(entry)
         log['decision'] = f'added {e.key}'

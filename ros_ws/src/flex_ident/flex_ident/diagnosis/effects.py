@@ -28,7 +28,7 @@ import numpy as np
 from ..mechanics.model import Coefficient, ConstantForce, CoulombFriction, ViscousDamping
 
 #: smoothing velocity of the Coulomb friction model [rad/s]
-COULOMB_VELOCITY_SCALE = 0.01
+COULOMB_VELOCITY_SCALE = 0.02
 DELAY_PARAMETER = 'delay_s'
 
 
