@@ -179,11 +179,14 @@ def score_screen(state: State, base: IdentificationProblem, candidates: list[Eff
     for e in candidates:
         cols = [problem.free.index(n) for n in e.coefficients]
         JG = J[:, cols]
-        if not np.all(np.isfinite(JG)):
+        if not (np.all(np.isfinite(JG)) and np.all(np.isfinite(JB))):
             continue
-        coef_b, *_ = np.linalg.lstsq(JB, JG, rcond=None)
-        Jp = JG - JB @ coef_b
-        step, *_ = np.linalg.lstsq(Jp, -r, rcond=None)
+        try:
+            coef_b, *_ = np.linalg.lstsq(JB, JG, rcond=None)
+            Jp = JG - JB @ coef_b
+            step, *_ = np.linalg.lstsq(Jp, -r, rcond=None)
+        except np.linalg.LinAlgError:
+            continue
         if e.one_sided and np.any(step < 0):
             drop = 0.0
         else:
@@ -220,20 +223,70 @@ def _errors(problem, ev) -> dict:
     return problem.cost.errors(ev.traj.q)
 
 
+def _entry(e: Effect, fitted, result, before, dbic, n_eff, drop, how: str, declared: list) -> dict:
+    """One effects_added item (CONTRACTS.md section 3) from the joint fit that added effect ``e``."""
+    ev = result.evaluation
+    values = [result.params[fitted.free.index(n)] for n in e.coefficients]
+    std, _ = parameter_covariance(ev.jacobian, ev.residual)
+    std_map = dict(zip(fitted.free, std))
+    return {
+        'name': e.name, 'key': e.key,
+        'parameters': reported_parameters(e, values),
+        'coefficients': dict(zip(e.coefficients, (float(v) for v in values))),
+        'coefficient_std': {n: float(std_map[n]) for n in e.coefficients},
+        'evidence': (f'{describe(e, values)}. Residual sum of squares {100 * drop:.1f} % lower; BIC change '
+                     f'{dbic:.1f} with {n_eff:.0f} effective samples (strong evidence below -{BIC_STRONG:g}); {how}.'),
+        'error_before': _errors(fitted, before),
+        'error_after': _errors(fitted, ev),
+        'declared_parameters_after': {n: float(result.params[fitted.free.index(n)]) for n in declared},
+        'declared_parameter_std': {n: float(std_map[n]) for n in declared},
+    }
+
+
+def _state_with(base: IdentificationProblem, effects: list[Effect], values: dict) -> State:
+    """The declared model plus ``effects`` (in order), parameters from ``values`` (name -> value) or null values."""
+    tf = base.transform
+    state = State(base.model, list(base.free), np.array([values[n] for n in base.free], float),
+                  np.asarray(tf.lower, float), np.asarray(tf.upper, float))
+    for e in effects:
+        state = State(with_effect(state.model, e), state.free + list(e.coefficients),
+                      np.concatenate([state.params, [values.get(n, v) for n, v in zip(e.coefficients, e.null)]]),
+                      np.concatenate([state.lower, e.lower]), np.concatenate([state.upper, e.upper]),
+                      state.effects + [e])
+    return state
+
+
+def _accept(dbic: float, drop: float) -> bool:
+    return dbic < -BIC_STRONG and drop >= MIN_RSS_DROP
+
+
+def _fit_state(state: State, base: IdentificationProblem):
+    problem = state.problem(base)
+    result = levenberg_marquardt(problem, problem.start, max_iterations=20, rescue_above=None)
+    base.substeps = max(base.substeps, problem.substeps)
+    return problem, result
+
+
 def diagnose(problem: IdentificationProblem, params, progress=None, candidates: list[Effect] | None = None,
              max_rounds: int = MAX_ROUNDS) -> dict:
     """Run the closed loop from identified declared parameters ``params`` (of ``problem.free``).
 
+    Forward selection (score screening, joint fits, BIC) with a backward step: after an effect is added, every
+    earlier one is refitted out and dropped unless the evidence still demands it (a greedy first choice, e.g. seven
+    torque biases standing in for one sensor gain and some damping, is undone). If anything was dropped, the final
+    set is replayed in order from the declared fit so that each item's error_before/after is its own.
+
     Returns {'effects_added': [...CONTRACTS section 3...], 'parameters': final declared + effect coefficients,
     'error_after': final errors, 'rounds': screening/decision log, 'wall_time_s'}."""
     t0 = time.monotonic()
-    tf = problem.transform
-    state = State(problem.model, list(problem.free), np.asarray(params, float), np.asarray(tf.lower, float),
-                  np.asarray(tf.upper, float))
-    remaining = list(candidates if candidates is not None else candidate_effects(problem.model))
-    current = state.problem(problem).evaluate(state.params, jacobian=False)
-    added, rounds = [], []
+    values = dict(zip(problem.free, (float(v) for v in params)))
+    state = _state_with(problem, [], values)
+    declared_eval = state.problem(problem).evaluate(state.params, jacobian=False)
+    current = declared_eval
+    pool = list(candidates if candidates is not None else candidate_effects(problem.model))
+    added, rounds, dropped_any = [], [], False
     for round_no in range(max_rounds):
+        remaining = [c for c in pool if c.key not in {e.key for e in state.effects}]
         if not remaining:
             break
         if progress:
@@ -259,38 +312,56 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
             log['fits'].append({'effect': e.key, 'rss_drop': round(drop, 4), 'dbic': round(dbic, 1),
                                 'n_eff': round(n_eff, 1), 'iterations': int(result.iterations),
                                 'parameters': dict(zip(fitted.free, (float(v) for v in result.params)))})
-            if dbic < -BIC_STRONG and drop >= MIN_RSS_DROP and (best is None or dbic < best[3]):
+            if _accept(dbic, drop) and (best is None or dbic < best[3]):
                 best = (e, fitted, result, dbic, n_eff, drop, s)
         if best is None:
             log['decision'] = 'no candidate passes (dBIC < -%g and residual drop >= %g)' % (BIC_STRONG, MIN_RSS_DROP)
             break
         e, fitted, result, dbic, n_eff, drop, s = best
-        ev = result.evaluation
-        values = [result.params[fitted.free.index(n)] for n in e.coefficients]
-        std, _ = parameter_covariance(ev.jacobian, ev.residual)
-        std_map = dict(zip(fitted.free, std))
-        entry = {
-            'name': e.name, 'key': e.key,
-            'parameters': reported_parameters(e, values),
-            'coefficients': dict(zip(e.coefficients, (float(v) for v in values))),
-            'coefficient_std': {n: float(std_map[n]) for n in e.coefficients},
-            'evidence': (f'{describe(e, values)}. Residual sum of squares {100 * drop:.1f} % lower; '
-                         f'BIC change {dbic:.1f} with {n_eff:.0f} effective samples (strong evidence below '
-                         f'-{BIC_STRONG:g}); the score test ranked it {screen.index(s) + 1} of {len(screen)} '
-                         f'candidates (predicted {100 * s["predicted_rss_drop"]:.1f} % drop).'),
-            'error_before': _errors(fitted, current),
-            'error_after': _errors(fitted, ev),
-            'declared_parameters_after': {n: float(result.params[fitted.free.index(n)]) for n in problem.free},
-            'declared_parameter_std': {n: float(std_map[n]) for n in problem.free},
-        }
-        added.append(entry)
+        how = (f'the score test ranked it {screen.index(s) + 1} of {len(screen)} candidates (predicted '
+               f'{100 * s["predicted_rss_drop"]:.1f} % drop)')
+        added.append(_entry(e, fitted, result, current, dbic, n_eff, drop, how, problem.free))
         log['decision'] = f'added {e.key}'
-        state = State(with_effect(state.model, e), list(fitted.free), np.asarray(result.params, float),
-                      np.asarray(fitted.transform.lower, float), np.asarray(fitted.transform.upper, float),
-                      state.effects + [e])
-        problem.substeps = max(problem.substeps, fitted.substeps)
-        remaining = [c for c in remaining if c.key != e.key]
-        current = ev
+        values = dict(zip(fitted.free, (float(v) for v in result.params)))
+        state = _state_with(problem, state.effects + [e], values)
+        current = result.evaluation
+        # backward step
+        for old in list(state.effects[:-1]):
+            reduced = _state_with(problem, [x for x in state.effects if x.key != old.key], values)
+            r_problem, r_result = _fit_state(reduced, problem)
+            r_ev = r_result.evaluation
+            if not r_ev.ok:
+                continue
+            n_eff = effective_samples(current.residual)
+            keep_dbic = delta_bic(r_ev.cost, current.cost, old.size, n_eff)
+            keep_drop = 1.0 - current.cost / r_ev.cost if r_ev.cost > 0 else 0.0
+            log.setdefault('backward', []).append({'effect': old.key, 'dbic_to_keep': round(keep_dbic, 1),
+                                                   'rss_drop_to_keep': round(keep_drop, 4)})
+            if not _accept(keep_dbic, keep_drop):
+                dropped_any = True
+                log['decision'] += f', dropped {old.key}'
+                values = dict(zip(r_problem.free, (float(v) for v in r_result.params)))
+                state = _state_with(problem, reduced.effects, values)
+                current = r_ev
+    if dropped_any:
+        added = _replay(problem, state.effects, declared_eval, dict(zip(problem.free, (float(v) for v in params))))
     return {'effects_added': added, 'parameters': dict(zip(state.free, (float(v) for v in state.params))),
             'error_after': problem.cost.errors(current.traj.q), 'rounds': rounds,
             'wall_time_s': time.monotonic() - t0}
+
+
+def _replay(problem, effects, declared_eval, values) -> list:
+    """Effects_added entries for the final effect set, added in order from the declared fit."""
+    out, current, state = [], declared_eval, _state_with(problem, [], values)
+    for e in effects:
+        fitted, result = fit_with(state, problem, e)
+        ev = result.evaluation
+        n_eff = effective_samples(ev.residual)
+        dbic = delta_bic(current.cost, ev.cost, e.size, n_eff)
+        drop = 1.0 - ev.cost / current.cost if current.cost > 0 else 0.0
+        out.append(_entry(e, fitted, result, current, dbic, n_eff, drop,
+                          'kept by the backward step (an effect chosen earlier was dropped)', problem.free))
+        values = dict(zip(fitted.free, (float(v) for v in result.params)))
+        state = _state_with(problem, state.effects + [e], values)
+        current = ev
+    return out
