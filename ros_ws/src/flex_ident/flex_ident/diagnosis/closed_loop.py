@@ -7,7 +7,8 @@ After the declared parameters are identified (``identify``), each round
    their null values (forward sensitivities; central differences for the time offset). The Gauss-Newton step of a
    candidate's columns, made orthogonal to the current parameters' columns, predicts the drop of the residual sum of
    squares if that effect were added (a Rao score / Lagrange-multiplier test);
-2. **fits** the most promising candidates jointly with the current parameters (the same Levenberg-Marquardt and
+2. **fits** the most promising candidates (all with a predicted drop of at least SCREEN_MIN_DROP, at most
+   FIT_CANDIDATES; the linear prediction is a ranking, not a verdict) jointly with the current parameters (the same Levenberg-Marquardt and
    sensitivities as the declared identification, starting at the current optimum and the effect's null value);
 3. **decides** with the Bayesian information criterion on the residual, with an effective sample count that accounts
    for the residual's correlation in time (simulated trajectories turn white measurement noise into smooth errors,
@@ -40,7 +41,9 @@ BIC_STRONG = 10.0
 MIN_RSS_DROP = 0.02
 DELAY_STEP_S = 0.002
 MAX_ROUNDS = 4
-FIT_CANDIDATES = 2          # candidates fitted per round (best predicted first)
+FIT_CANDIDATES = 4          # at most this many candidates fitted per round (best predicted first) ...
+SCREEN_MIN_DROP = 0.005     # ... among those whose predicted residual drop is at least this (the score test can
+                            # underpredict damping of lightly damped loop modes by an order of magnitude)
 
 
 class TimeShiftedProblem:
@@ -285,6 +288,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
     current = declared_eval
     pool = list(candidates if candidates is not None else candidate_effects(problem.model))
     added, rounds, dropped_any = [], [], False
+    final_free = list(problem.free)
     for round_no in range(max_rounds):
         remaining = [c for c in pool if c.key not in {e.key for e in state.effects}]
         if not remaining:
@@ -299,7 +303,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
         rounds.append(log)
         best = None
         for s in screen[:FIT_CANDIDATES]:
-            if s['predicted_rss_drop'] < 0.5 * MIN_RSS_DROP:
+            if s['predicted_rss_drop'] < SCREEN_MIN_DROP:
                 continue
             e = s['effect']
             fitted, result = fit_with(state, problem, e, s['predicted_step'])
@@ -324,7 +328,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
         log['decision'] = f'added {e.key}'
         values = dict(zip(fitted.free, (float(v) for v in result.params)))
         state = _state_with(problem, state.effects + [e], values)
-        current = result.evaluation
+        current, final_free = result.evaluation, list(fitted.free)
         # backward step
         for old in list(state.effects[:-1]):
             reduced = _state_with(problem, [x for x in state.effects if x.key != old.key], values)
@@ -342,9 +346,19 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
                 log['decision'] += f', dropped {old.key}'
                 values = dict(zip(r_problem.free, (float(v) for v in r_result.params)))
                 state = _state_with(problem, reduced.effects, values)
-                current = r_ev
+                current, final_free = r_ev, list(r_problem.free)
     if dropped_any:
         added = _replay(problem, state.effects, declared_eval, dict(zip(problem.free, (float(v) for v in params))))
+    if added:
+        # every effect's parameters as identified jointly in the final model (the values when it was added are kept)
+        final = dict(zip(final_free, (float(v) for v in current.params)))
+        std, _ = parameter_covariance(current.jacobian, current.residual)
+        std = dict(zip(final_free, (float(v) for v in std)))
+        for entry, e in zip(added, state.effects):
+            entry['parameters_when_added'] = entry['parameters']
+            entry['parameters'] = reported_parameters(e, [final[n] for n in e.coefficients])
+            entry['coefficients'] = {n: final[n] for n in e.coefficients}
+            entry['coefficient_std'] = {n: std[n] for n in e.coefficients}
     return {'effects_added': added, 'parameters': dict(zip(state.free, (float(v) for v in state.params))),
             'error_after': problem.cost.errors(current.traj.q), 'rounds': rounds,
             'wall_time_s': time.monotonic() - t0}
