@@ -1,11 +1,12 @@
 """Closed-loop benchmark: MuJoCo recordings (6-link loop, 10 s, contract noise) with one undeclared effect each or
 none, plus the shipped clean examples -> identify + diagnose -> table of k errors, effect named, its parameter.
 
-    python benchmarks/closed_loop/run_benchmark.py OUT_DIR [CASE ...]
+    [BENCH_SEED=7] python benchmarks/closed_loop/run_benchmark.py OUT_DIR [CASE ...]
 
 Writes OUT_DIR/results.json and prints a markdown table (docs/CLOSED_LOOP_STATUS.md holds the last one).
 """
 import json
+import os
 import subprocess
 import sys
 import time
@@ -56,7 +57,8 @@ def record(out: Path, name: str, args) -> Path:
         subprocess.run([sys.executable, '-m', 'robot_bridge.sim.mujoco_loop', '--experiment', str(experiment_of(name)),
                         '--out',
                         str(bag), '--k-theta', '5', '--k-phi', '3', '--duration', '10', '--amplitude-scale', '0.6',
-                        '--seed', '7'] + NOISE + list(args), check=True, capture_output=True)
+                        '--seed', os.environ.get('BENCH_SEED', '7')] + NOISE + list(args), check=True,
+                       capture_output=True)
     return bag
 
 
