@@ -176,7 +176,8 @@ def add_diagnosis(report: dict, problem, result, progress: Progress | None = Non
     found = diagnose(problem, result.params, progress)
     report['effects_added'] = found['effects_added']
     report['diagnosis'] = {'rounds': found['rounds'], 'wall_time_s': found['wall_time_s'],
-                           'all_parameters': found['parameters']}
+                           'all_parameters': found['parameters'], 'cost': found['cost'],
+                           'declared_refit_on_diagnosis_cost': found['declared_refit']}
     if found['effects_added']:
         report['declared_only'] = {'parameters': report['parameters'], 'parameter_std': report['parameter_std'],
                                    'error_after': report['error_after']}
