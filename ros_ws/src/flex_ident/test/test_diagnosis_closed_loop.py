@@ -97,3 +97,18 @@ def test_diagnosis_names_loop_damping_and_nothing_on_clean_data(model, recording
     k = effect['declared_parameters_after']
     assert k['k_theta'] == pytest.approx(5.0, rel=0.05) and k['k_phi'] == pytest.approx(3.0, rel=0.05)
     assert 'BIC' in effect['evidence']
+
+
+def test_torque_sensor_delay_is_found_and_measured(model, recordings):
+    """Efforts recorded 30 ms late (shifted by three samples): the time offset is named, positive (torque sensors
+    lag), and measured to a few milliseconds."""
+    rec = recordings['clean']
+    late = type('Recording', (), {'t_s': rec.t_s, 'position': rec.position,
+                                  'effort': np.concatenate([np.repeat(rec.effort[:1], 3, axis=0), rec.effort[:-3]])})
+    problem = _problem(model, late)
+    fit = optimize(problem, np.array([4.0, 2.5]), 'lm')
+    candidates = [e for e in candidate_effects(model) if e.key in ('time_offset', 'loop_damping', 'arm_viscous')]
+    added = diagnose(problem, fit.params, candidates=candidates)['effects_added']
+    assert [e['key'] for e in added] == ['time_offset']
+    assert added[0]['parameters']['delay_s'] == pytest.approx(0.03, abs=0.005)
+    assert 'torque sensors lag' in added[0]['evidence']

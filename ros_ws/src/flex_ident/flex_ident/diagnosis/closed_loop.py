@@ -98,6 +98,13 @@ class TimeShiftedProblem:
         return ev
 
     def evaluate(self, params, jacobian: bool = False, gradient: bool = False):
+        """As IdentificationProblem.evaluate; the gradient (if asked) is 2 J^T r from the residual Jacobian."""
+        ev = self._evaluate(params, jacobian or gradient)
+        if gradient and ev.ok:
+            ev.gradient = 2.0 * ev.jacobian.T @ ev.residual.ravel()
+        return ev
+
+    def _evaluate(self, params, jacobian: bool):
         self.evaluations += 1
         params = np.asarray(params, float)
         if not self.with_delay:
