@@ -49,6 +49,16 @@ def test_identify_mcap_example_end_to_end(tmp_path, capsys):
     assert report['history'][0]['parameters'] == {'k_theta': 1.0, 'k_phi': 1.0}
 
 
+def test_diagnose_keeps_the_declared_model_on_the_clean_example(tmp_path, capsys):
+    out = tmp_path / 'out'
+    assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
+                 '--out', str(out), '--quiet', '--no-plots', '--diagnose']) == 0
+    report = json.loads((out / 'report.json').read_text())
+    assert report['effects_added'] == [] and 'declared_only' not in report
+    assert report['diagnosis']['rounds'][0]['screening']           # every candidate was screened
+    assert json.loads(capsys.readouterr().out)['effects_added'] == []
+
+
 def test_identify_sqlite3_bag_with_window_and_joint_cost(tmp_path):
     rec = read_joint_recording(EXAMPLE6 / 'bag')
     bag = tmp_path / 'bag_sqlite'

@@ -2,7 +2,12 @@
 
     flex-ident identify --bag BAG --experiment EXP.yaml --out DIR [--method lm|lbfgsb|steepest]
                         [--cost end_effector|joint_angles] [--max-iterations N] [--no-continuation] [--no-plots]
-                        [--quiet]
+                        [--diagnose] [--quiet]
+
+--diagnose closes the loop: after k_theta, k_phi are identified, the residual is screened for the effects the declared
+model lacks (loop / arm viscous damping, arm Coulomb friction, torque sensor bias and gain, measurement delay); each
+statistically significant one (BIC on the time-correlated residual) is added and identified jointly with the
+declared parameters, and listed in the report's effects_added.
 
 Writes DIR/report.json (CONTRACTS.md section 3) and plots, shows a progress bar (tqdm, on stderr) and prints the
 identified parameters. On bad input it prints one line ``flex-ident: error: ...`` and exits with status 2, writing
@@ -44,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--no-continuation', action='store_true',
                    help='optimize on the whole recording at once (default: warm start on its first 2.5, 5, 10 ... s, '
                         'which keeps soft loops and wide motions out of local minima)')
+    p.add_argument('--diagnose', action='store_true',
+                   help='after identification, find, add and jointly identify the effects the declared model lacks '
+                        '(report: effects_added)')
     p.add_argument('--no-plots', action='store_true', help='write report.json only')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return parser
@@ -117,12 +125,14 @@ def identify_command(args) -> int:
         run = identify(args.bag, args.experiment, args.out,
                        IdentificationSettings(method=method, cost=args.cost, max_iterations=args.max_iterations,
                                               continuation=not args.no_continuation,
-                                              plots=not args.no_plots), progress=bar)
+                                              plots=not args.no_plots, diagnose=args.diagnose), progress=bar)
     finally:
         bar.close()
     report = run.report
     summary = {'parameters': report['parameters'], 'parameter_std': report['parameter_std'],
                'error_before': report['error_before'], 'error_after': report['error_after'],
+               'effects_added': [{'name': e['name'], 'parameters': e['parameters']}
+                                 for e in report.get('effects_added', [])],
                'iterations': report['iterations'], 'wall_time_s': round(report['wall_time_s'], 2),
                'report': str((__import__('pathlib').Path(args.out) / 'report.json'))}
     print(json.dumps(summary, indent=2))

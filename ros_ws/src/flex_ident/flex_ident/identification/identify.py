@@ -50,6 +50,7 @@ class IdentificationSettings:
     plots: bool = True
     continuation: bool = True                   # warm start on the first 2.5 s, 5 s, 10 s, ... of the recording
     first_window_s: float = 2.5
+    diagnose: bool = False                      # closed loop: find, add and jointly identify missing effects
 
 
 @dataclass
@@ -152,6 +153,8 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     _notify(progress, stage='report', fraction=0.0)
     report = build_report(problem, result, initial, experiment, bag_path, method, notes,
                           wall_time_s=time.monotonic() - t_start)
+    if settings.diagnose:
+        add_diagnosis(report, problem, result, progress)
     plots = []
     if settings.plots:
         from .plots import write_plots
@@ -162,6 +165,26 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     write_report(out, report)
     _notify(progress, stage='done', fraction=1.0)
     return IdentificationRun(report=report, model=model, problem=problem, result=result, initial=initial)
+
+
+def add_diagnosis(report: dict, problem, result, progress: Progress | None = None):
+    """The closed loop (``flex_ident.diagnosis``): effects_added, and the declared parameters and overall error
+    after the last added effect (the declared-only fit is kept under 'declared_only')."""
+    from ..diagnosis.closed_loop import diagnose
+
+    _notify(progress, stage='diagnose', fraction=0.0)
+    found = diagnose(problem, result.params, progress)
+    report['effects_added'] = found['effects_added']
+    report['diagnosis'] = {'rounds': found['rounds'], 'wall_time_s': found['wall_time_s'],
+                           'all_parameters': found['parameters'], 'cost': found['cost'],
+                           'declared_refit_on_diagnosis_cost': found['declared_refit']}
+    if found['effects_added']:
+        report['declared_only'] = {'parameters': report['parameters'], 'parameter_std': report['parameter_std'],
+                                   'error_after': report['error_after']}
+        last = found['effects_added'][-1]
+        report['parameters'] = dict(last['declared_parameters_after'])
+        report['parameter_std'] = {n: last['declared_parameter_std'].get(n) for n in problem.free}
+        report['error_after'] = found['error_after']
 
 
 def warm_start(problem, p0, method, first_window_s=2.5, progress: Progress | None = None):

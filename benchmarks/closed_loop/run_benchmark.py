@@ -1,0 +1,118 @@
+"""Closed-loop benchmark: MuJoCo recordings (6-link loop, 10 s, contract noise) with one undeclared effect each or
+none, plus the shipped clean examples -> identify + diagnose -> table of k errors, effect named, its parameter.
+
+    [BENCH_SEED=7] python benchmarks/closed_loop/run_benchmark.py OUT_DIR [CASE ...]
+
+Writes OUT_DIR/results.json and prints a markdown table (docs/CLOSED_LOOP_STATUS.md holds the last one).
+"""
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from flex_ident.diagnosis.closed_loop import diagnose
+from flex_ident.identification.identify import IdentificationSettings, identify
+
+REPO = Path(__file__).resolve().parents[2]
+EXP6 = REPO / 'bags' / 'example_loop6' / 'experiment.yaml'
+EXP12 = REPO / 'bags' / 'example_loop12' / 'experiment.yaml'
+LOOP12 = ['--duration', '20', '--amplitude-scale', '1.0']      # the 12-link example's motion (later flags win)
+NOISE = ['--noise-position', '2e-4', '--noise-velocity', '5e-3', '--noise-effort', '0.1']
+BIAS = [0.3, -0.4, 0.2, 0.3, -0.2, 0.1, 0.1]
+# case: (simulator arguments, expected effect key or None, {reported parameter: truth})
+CASES = {
+    'clean': ([], None, {}),
+    'clean_seed11': (['--seed', '11'], None, {}),
+    'loop_damping_0.05': (['--loop-damping', '0.05'], 'loop_damping', {'c_loop': 0.05}),
+    'loop_damping_0.02': (['--loop-damping', '0.02'], 'loop_damping', {'c_loop': 0.02}),
+    'arm_viscous_0.5': (['--arm-viscous', '0.5'], 'arm_viscous', {'c_arm': 0.5}),
+    'arm_coulomb_0.3': (['--arm-coulomb', '0.3'], 'arm_coulomb', {'f_arm': 0.3}),
+    'torque_bias': (['--effort-bias'] + [str(b) for b in BIAS], 'torque_bias',
+                    {f'b_right_{j}': b for j, b in zip(['s0', 's1', 'e0', 'e1', 'w0', 'w1', 'w2'], BIAS)}),
+    'torque_gain_0.9': (['--effort-gain', '0.9'], 'torque_gain', {'torque_sensor_gain': 0.9}),
+    'position_delay_20ms': (['--position-delay', '0.02'], 'time_offset', {'delay_s': -0.02}),
+    'effort_delay_20ms': (['--effort-delay', '0.02'], 'time_offset', {'delay_s': 0.02}),
+    # stronger effects, two effects at once, the 12-link loop
+    'loop_damping_0.2': (['--loop-damping', '0.2'], 'loop_damping', {'c_loop': 0.2}),
+    'arm_viscous_2.0': (['--arm-viscous', '2.0'], 'arm_viscous', {'c_arm': 2.0}),
+    'loop_damping+torque_gain': (['--loop-damping', '0.05', '--effort-gain', '0.9'], ['torque_gain', 'loop_damping'],
+                                 {'c_loop': 0.05, 'torque_sensor_gain': 0.9}),
+    'effort_delay+arm_coulomb': (['--effort-delay', '0.02', '--arm-coulomb', '0.3'], ['time_offset', 'arm_coulomb'],
+                                 {'delay_s': 0.02, 'f_arm': 0.3}),
+    'loop12_clean': (LOOP12, None, {}),
+    'loop12_loop_damping_0.05': (LOOP12 + ['--loop-damping', '0.05'], 'loop_damping', {'c_loop': 0.05}),
+}
+SHIPPED = {'example_loop6': None, 'example_loop12': None}
+
+
+def experiment_of(name: str) -> Path:
+    return EXP12 if name.startswith('loop12') else EXP6
+
+
+def record(out: Path, name: str, args) -> Path:
+    bag = out / 'recordings' / name
+    if not bag.exists():
+        subprocess.run([sys.executable, '-m', 'robot_bridge.sim.mujoco_loop', '--experiment', str(experiment_of(name)),
+                        '--out',
+                        str(bag), '--k-theta', '5', '--k-phi', '3', '--duration', '10', '--amplitude-scale', '0.6',
+                        '--seed', os.environ.get('BENCH_SEED', '7')] + NOISE + list(args), check=True,
+                       capture_output=True)
+    return bag
+
+
+def run_case(out: Path, name: str):
+    if name in SHIPPED:
+        bag, exp, expected, truth = REPO / 'bags' / name / 'bag', REPO / 'bags' / name / 'experiment.yaml', None, {}
+    else:
+        args, expected, truth = CASES[name]
+        bag, exp = record(out, name, args), experiment_of(name)
+    t0 = time.monotonic()
+    run = identify(bag, exp, out / 'reports' / name, IdentificationSettings(plots=False, diagnose=True))
+    report = run.report
+    added = report['effects_added']
+    keys = [e['key'] for e in added]
+    k = report['parameters']
+    k0 = report.get('declared_only', {}).get('parameters', k)
+    row = {'case': name, 'expected': expected, 'added': keys,
+           'k_theta': k['k_theta'], 'k_phi': k['k_phi'],
+           'k_error_pct': max(abs(k['k_theta'] / 5 - 1), abs(k['k_phi'] / 3 - 1)) * 100,
+           'declared_only_k': report.get('declared_only', {}).get('parameters', k),
+           'declared_only_k_error_pct': max(abs(k0['k_theta'] / 5 - 1), abs(k0['k_phi'] / 3 - 1)) * 100,
+           'ee_rms_before_mm': 1e3 * report['error_before']['ee_rms_m'],
+           'ee_rms_declared_mm': 1e3 * report.get('declared_only', report)['error_after']['ee_rms_m'],
+           'ee_rms_after_mm': 1e3 * report['error_after']['ee_rms_m'],
+           'parameters': {n: v for e in added for n, v in e['parameters'].items()}, 'truth': truth,
+           'rounds': report['diagnosis']['rounds'], 'wall_time_s': time.monotonic() - t0,
+           'diagnosis_s': report['diagnosis']['wall_time_s']}
+    expected = [expected] if isinstance(expected, str) else list(expected or [])
+    row['correct'] = sorted(keys) == sorted(expected)
+    return row
+
+
+def table(rows) -> str:
+    lines = ['| case | effects added | k_theta | k_phi | k error % (declared only) | effect parameter (truth) | '
+             'ee RMS declared -> after [mm] | diagnosis s | right? |', '|---|---|---|---|---|---|---|---|---|']
+    for r in rows:
+        par = ', '.join(f'{n} = {v:.3g}' + (f' ({r["truth"][n]:g})' if n in r['truth'] else '')
+                        for n, v in r['parameters'].items()) or '-'
+        lines.append(f'| {r["case"]} | {", ".join(r["added"]) or "[]"} | {r["k_theta"]:.3f} | {r["k_phi"]:.3f} | '
+                     f'{r["k_error_pct"]:.2f} ({r["declared_only_k_error_pct"]:.2f}) | {par} | {r["ee_rms_declared_mm"]:.3f} -> {r["ee_rms_after_mm"]:.3f} | '
+                     f'{r["diagnosis_s"]:.0f} | {"yes" if r["correct"] else "NO"} |')
+    return '\n'.join(lines)
+
+
+def main():
+    out = Path(sys.argv[1])
+    names = sys.argv[2:] or list(CASES) + list(SHIPPED)
+    rows = []
+    for name in names:
+        rows.append(run_case(out, name))
+        print(json.dumps({k: v for k, v in rows[-1].items() if k != 'rounds'}, default=str), flush=True)
+    (out / 'results.json').write_text(json.dumps(rows, indent=1, default=str))
+    print(table(rows))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,401 @@
+"""The closed loop on measured data: residual -> the effect the model lacks -> add it -> re-identify -> repeat.
+
+After the declared parameters are identified (``identify``), each round
+
+1. **screens** every remaining candidate effect (:mod:`.effects`) with a score test: one simulation of the current
+   model with the residual Jacobian with respect to the current parameters *and* every candidate's coefficients at
+   their null values (forward sensitivities; central differences for the time offset). The Gauss-Newton step of a
+   candidate's columns, made orthogonal to the current parameters' columns, predicts the drop of the residual sum of
+   squares if that effect were added (a Rao score / Lagrange-multiplier test);
+2. **fits** the most promising candidates (all with a predicted drop of at least SCREEN_MIN_DROP, at most
+   FIT_CANDIDATES; the linear prediction is a ranking, not a verdict) jointly with the current parameters (the same Levenberg-Marquardt and
+   sensitivities as the declared identification, starting at the current optimum and the effect's null value);
+3. **decides** with the Bayesian information criterion on the residual, with an effective sample count that accounts
+   for the residual's correlation in time (simulated trajectories turn white measurement noise into smooth errors,
+   so the raw sample count would make every effect look significant):
+
+       dBIC = N_eff ln(RSS_new / RSS_old) + k ln(N_eff),  N_eff = sum over channels T (1 - rho_1) / (1 + rho_1)
+
+   (rho_1: lag-one autocorrelation of the new model's residual, k: the effect's coefficient count). An effect is added
+   when dBIC < -BIC_STRONG (strong evidence on Kass and Raftery's scale) *and* it removes at least MIN_RSS_DROP of the
+   residual; rounds stop when no candidate passes. Clean data keeps the declared model.
+
+Measured time offsets are no model term: :class:`TimeShiftedProblem` evaluates the problem on torques shifted in
+time by a spline and adds their finite-difference column to the residual Jacobian.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from ..identification.optimizers import levenberg_marquardt
+from ..identification.problem import IdentificationProblem, MeasuredData, ParameterTransform
+from ..identification.report import parameter_covariance
+from .effects import DELAY_PARAMETER, Effect, candidate_effects, describe, reported_parameters, with_effect
+
+BIC_STRONG = 10.0
+MIN_RSS_DROP = 0.02
+DELAY_STEP_S = 0.002
+MAX_ROUNDS = 4
+DIAGNOSIS_COST = None            # None: the identification's own cost (end_effector by default)
+FIT_CANDIDATES = 4          # at most this many candidates fitted per round (best predicted first) ...
+SCREEN_MIN_DROP = 0.005     # ... among those whose predicted residual drop is at least this (the score test can
+                            # underpredict damping of lightly damped loop modes by an order of magnitude)
+
+
+class TimeShiftedProblem:
+    """An identification problem whose last free parameter may be the torque time offset ``delay_s``: the model is
+    driven by tau_meas(t + delay_s) (cubic spline, ends held). Same interface as IdentificationProblem for the
+    optimizers (evaluate, transform, substeps, discretization_changed)."""
+
+    def __init__(self, model, data: MeasuredData, free: list, lower, upper, feedback, substeps: int,
+                 cost_kind: str, torque_hold: str):
+        self.model, self.data, self.feedback = model, data, feedback
+        self.free = list(free)
+        self.with_delay = DELAY_PARAMETER in self.free
+        if self.with_delay and self.free[-1] != DELAY_PARAMETER:
+            raise ValueError(f'{DELAY_PARAMETER} must be the last free parameter')
+        self.coef_free = self.free[:-1] if self.with_delay else self.free
+        self.transform = ParameterTransform(np.asarray(lower, float), np.asarray(upper, float))
+        self.substeps = int(substeps)
+        self.cost_kind, self.torque_hold = cost_kind, torque_hold
+        self.discretization_changed = False
+        self.evaluations = 0
+        self._spline = CubicSpline(data.t_s, data.tau, axis=0) if self.with_delay else None
+        self._cache = {}
+        self.cost = self._inner(0.0).cost
+
+    def _inner(self, delay_s: float) -> IdentificationProblem:
+        key = round(float(delay_s), 12)
+        if key not in self._cache:
+            d = self.data
+            tau = d.tau
+            if key != 0.0:
+                t = np.clip(d.t_s + key, d.t_s[0], d.t_s[-1])
+                tau = self._spline(t)
+            shifted = MeasuredData(d.t_s, d.names, d.theta, tau)
+            lo = np.zeros(len(self.coef_free))
+            if len(self._cache) > 8:
+                self._cache.clear()
+            self._cache[key] = IdentificationProblem(self.model, shifted, self.coef_free, lo, lo + np.inf,
+                                                     self.feedback, substeps=self.substeps,
+                                                     cost_kind=self.cost_kind, torque_hold=self.torque_hold)
+        inner = self._cache[key]
+        inner.substeps = max(inner.substeps, self.substeps)
+        return inner
+
+    def _run(self, delay_s, coefs, jacobian):
+        inner = self._inner(delay_s)
+        ev = inner.evaluate(coefs, jacobian=jacobian)
+        if inner.discretization_changed:
+            inner.discretization_changed = False
+            self.discretization_changed = True
+            self.substeps = max(self.substeps, inner.substeps)
+        return ev
+
+    def evaluate(self, params, jacobian: bool = False, gradient: bool = False):
+        """As IdentificationProblem.evaluate; the gradient (if asked) is 2 J^T r from the residual Jacobian."""
+        ev = self._evaluate(params, jacobian or gradient)
+        if gradient and ev.ok:
+            ev.gradient = 2.0 * ev.jacobian.T @ ev.residual.ravel()
+        return ev
+
+    def _evaluate(self, params, jacobian: bool):
+        self.evaluations += 1
+        params = np.asarray(params, float)
+        if not self.with_delay:
+            ev = self._run(0.0, params, jacobian)
+            ev.params = params
+            return ev
+        coefs, delay = params[:-1], float(params[-1])
+        ev = self._run(delay, coefs, jacobian)
+        ev.params = params
+        if jacobian and ev.ok:
+            plus = self._run(delay + DELAY_STEP_S, coefs, False)
+            minus = self._run(delay - DELAY_STEP_S, coefs, False)
+            if plus.ok and minus.ok:
+                column = (plus.residual - minus.residual).ravel() / (2 * DELAY_STEP_S)
+            else:
+                column = np.full(ev.residual.size, np.nan)
+            ev.jacobian = np.column_stack([ev.jacobian, column])
+        return ev
+
+
+def effective_samples(residual) -> float:
+    """Sum over residual channels of T (1 - rho_1) / (1 + rho_1), rho_1 the lag-one autocorrelation (AR(1))."""
+    r = np.asarray(residual, float)
+    r = r.reshape(len(r), -1)
+    total = 0.0
+    for c in range(r.shape[1]):
+        x = r[:, c]
+        ss = float(x @ x)
+        rho = float(x[1:] @ x[:-1]) / ss if ss > 0 else 0.0
+        rho = min(max(rho, 0.0), 0.999)
+        total += len(x) * (1 - rho) / (1 + rho)
+    return max(total, 2.0)
+
+
+def delta_bic(rss_old: float, rss_new: float, k: int, n_eff: float) -> float:
+    return n_eff * math.log(max(rss_new, 1e-300) / max(rss_old, 1e-300)) + k * math.log(n_eff)
+
+
+@dataclass
+class State:
+    """The current model: model, free parameter names (declared + added effects), their values and bounds."""
+    model: object
+    free: list
+    params: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    effects: list = field(default_factory=list)      # accepted Effect objects
+
+    def problem(self, base: IdentificationProblem, extra: list[Effect] = ()) -> TimeShiftedProblem:
+        model, free = self.model, list(self.free)
+        lower, upper, params = list(self.lower), list(self.upper), list(self.params)
+        for e in extra:
+            model = with_effect(model, e)
+            free += list(e.coefficients)
+            lower += list(e.lower)
+            upper += list(e.upper)
+            params += list(e.null)
+        # the time offset, when present, goes last
+        if DELAY_PARAMETER in free:
+            i = free.index(DELAY_PARAMETER)
+            for seq in (free, lower, upper, params):
+                seq.append(seq.pop(i))
+        problem = TimeShiftedProblem(model, base.data, free, lower, upper, base.feedback, base.substeps,
+                                     base.cost.kind, base.torque_hold)
+        problem.start = np.array(params, float)
+        return problem
+
+
+def score_screen(state: State, base: IdentificationProblem, candidates: list[Effect]) -> list[dict]:
+    """Predicted residual drop of every candidate from one evaluation with the augmented Jacobian (score test)."""
+    problem = state.problem(base, candidates)
+    ev = problem.evaluate(problem.start, jacobian=True)
+    base.substeps = max(base.substeps, problem.substeps)
+    if not ev.ok:
+        return []
+    r = ev.residual.ravel()
+    J = ev.jacobian
+    rss = float(r @ r)
+    n_eff = effective_samples(ev.residual)
+    own = [problem.free.index(n) for n in state.free]
+    JB = J[:, own]
+    out = []
+    for e in candidates:
+        cols = [problem.free.index(n) for n in e.coefficients]
+        JG = J[:, cols]
+        if not (np.all(np.isfinite(JG)) and np.all(np.isfinite(JB))):
+            continue
+        try:
+            coef_b, *_ = np.linalg.lstsq(JB, JG, rcond=None)
+            Jp = JG - JB @ coef_b
+            step, *_ = np.linalg.lstsq(Jp, -r, rcond=None)
+        except np.linalg.LinAlgError:
+            continue
+        if e.one_sided and np.any(step < 0):
+            drop = 0.0
+        else:
+            drop = float(-(2 * r @ (Jp @ step) + (Jp @ step) @ (Jp @ step)))
+        drop = min(max(drop, 0.0), rss)
+        out.append({'effect': e, 'predicted_rss_drop': drop / rss if rss > 0 else 0.0,
+                    'predicted_step': step.tolist(),
+                    'predicted_dbic': delta_bic(rss, rss - drop, e.size, n_eff)})
+    out.sort(key=lambda s: s['predicted_dbic'])
+    return out
+
+
+def fit_with(state: State, base: IdentificationProblem, effect: Effect, step=None, max_iterations: int = 20):
+    """Joint fit of the current parameters and the effect's coefficients (LM), from the current optimum and the
+    effect's null value, or from the score test's Gauss-Newton ``step`` when that is better (nonsmooth effects such as
+    Coulomb friction can stall in a poor local minimum from the null value)."""
+    problem = state.problem(base, [effect])
+    start = problem.start
+    if step is not None:
+        cols = [problem.free.index(n) for n in effect.coefficients]
+        lo, hi = problem.transform.lower[cols], problem.transform.upper[cols]
+        trial = start.copy()
+        trial[cols] = np.clip(start[cols] + np.asarray(step, float), lo, hi)
+        a = problem.evaluate(start)
+        b = problem.evaluate(trial)
+        if b.ok and (not a.ok or b.cost < a.cost):
+            start = trial
+    result = levenberg_marquardt(problem, start, max_iterations=max_iterations, rescue_above=None)
+    base.substeps = max(base.substeps, problem.substeps)
+    return problem, result
+
+
+def _errors(problem, ev) -> dict:
+    return problem.cost.errors(ev.traj.q)
+
+
+def _entry(e: Effect, fitted, result, before, dbic, n_eff, drop, how: str, declared: list) -> dict:
+    """One effects_added item (CONTRACTS.md section 3) from the joint fit that added effect ``e``."""
+    ev = result.evaluation
+    values = [result.params[fitted.free.index(n)] for n in e.coefficients]
+    std, _ = parameter_covariance(ev.jacobian, ev.residual)
+    std_map = dict(zip(fitted.free, std))
+    return {
+        'name': e.name, 'key': e.key,
+        'parameters': reported_parameters(e, values),
+        'coefficients': dict(zip(e.coefficients, (float(v) for v in values))),
+        'coefficient_std': {n: float(std_map[n]) for n in e.coefficients},
+        'evidence': (f'{describe(e, values)}. Residual sum of squares {100 * drop:.1f} % lower; BIC change '
+                     f'{dbic:.1f} with {n_eff:.0f} effective samples (strong evidence below -{BIC_STRONG:g}); {how}.'),
+        'error_before': _errors(fitted, before),
+        'error_after': _errors(fitted, ev),
+        'declared_parameters_after': {n: float(result.params[fitted.free.index(n)]) for n in declared},
+        'declared_parameter_std': {n: float(std_map[n]) for n in declared},
+    }
+
+
+def _state_with(base: IdentificationProblem, effects: list[Effect], values: dict) -> State:
+    """The declared model plus ``effects`` (in order), parameters from ``values`` (name -> value) or null values."""
+    tf = base.transform
+    state = State(base.model, list(base.free), np.array([values[n] for n in base.free], float),
+                  np.asarray(tf.lower, float), np.asarray(tf.upper, float))
+    for e in effects:
+        state = State(with_effect(state.model, e), state.free + list(e.coefficients),
+                      np.concatenate([state.params, [values.get(n, v) for n, v in zip(e.coefficients, e.null)]]),
+                      np.concatenate([state.lower, e.lower]), np.concatenate([state.upper, e.upper]),
+                      state.effects + [e])
+    return state
+
+
+def _accept(dbic: float, drop: float) -> bool:
+    return dbic < -BIC_STRONG and drop >= MIN_RSS_DROP
+
+
+def _fit_state(state: State, base: IdentificationProblem):
+    problem = state.problem(base)
+    result = levenberg_marquardt(problem, problem.start, max_iterations=20, rescue_above=None)
+    base.substeps = max(base.substeps, problem.substeps)
+    return problem, result
+
+
+def diagnose(problem: IdentificationProblem, params, progress=None, candidates: list[Effect] | None = None,
+             max_rounds: int = MAX_ROUNDS, cost: str | None = DIAGNOSIS_COST) -> dict:
+    """Run the closed loop from identified declared parameters ``params`` (of ``problem.free``).
+
+    Forward selection (score screening, joint fits, BIC) with a backward step: after an effect is added, every
+    earlier one is refitted out and dropped unless the evidence still demands it (a greedy first choice, e.g. seven
+    torque biases standing in for one sensor gain and some damping, is undone). If anything was dropped, the final
+    set is replayed in order from the declared fit so that each item's error_before/after is its own.
+
+    Returns {'effects_added': [...CONTRACTS section 3...], 'parameters': final declared + effect coefficients,
+    'error_after': final errors, 'rounds': screening/decision log, 'wall_time_s'}.
+
+    cost: the residual the diagnosis works on (None: the identification's; otherwise the declared parameters are
+    first refitted on it). Measured on 18 recordings (docs/CLOSED_LOOP_STATUS.md): the end-effector cost names the
+    right effects in all; 'joint_angles' recovers arm friction and per-joint torque biases more accurately but
+    takes a torque sensor gain for biases on the gravity-loaded joints and misses loop damping on the 12-link loop."""
+    t0 = time.monotonic()
+    if cost is not None and problem.cost.kind != cost:
+        problem = IdentificationProblem(problem.model, problem.data, problem.free, problem.transform.lower,
+                                        problem.transform.upper, problem.feedback, substeps=problem.substeps,
+                                        cost_kind=cost, torque_hold=problem.torque_hold,
+                                        max_substeps=problem.max_substeps)
+        params = levenberg_marquardt(problem, params, max_iterations=20, rescue_above=None).params
+    values = dict(zip(problem.free, (float(v) for v in params)))
+    state = _state_with(problem, [], values)
+    declared_eval = state.problem(problem).evaluate(state.params, jacobian=False)
+    current = declared_eval
+    pool = list(candidates if candidates is not None else candidate_effects(problem.model))
+    added, rounds, dropped_any = [], [], False
+    final_free = list(problem.free)
+    for round_no in range(max_rounds):
+        remaining = [c for c in pool if c.key not in {e.key for e in state.effects}]
+        if not remaining:
+            break
+        if progress:
+            progress({'stage': 'diagnose', 'round': round_no + 1, 'fraction': 0.0})
+        screen = score_screen(state, problem, remaining)
+        log = {'round': round_no + 1, 'rss_before': float(current.cost),
+               'screening': [{'effect': s['effect'].key, 'predicted_rss_drop': round(s['predicted_rss_drop'], 4),
+                              'predicted_dbic': round(s['predicted_dbic'], 1)} for s in screen],
+               'fits': []}
+        rounds.append(log)
+        best = None
+        for s in screen[:FIT_CANDIDATES]:
+            if s['predicted_rss_drop'] < SCREEN_MIN_DROP:
+                continue
+            e = s['effect']
+            fitted, result = fit_with(state, problem, e, s['predicted_step'])
+            ev = result.evaluation
+            if not ev.ok:
+                continue
+            n_eff = effective_samples(ev.residual)
+            dbic = delta_bic(current.cost, ev.cost, e.size, n_eff)
+            drop = 1.0 - ev.cost / current.cost if current.cost > 0 else 0.0
+            log['fits'].append({'effect': e.key, 'rss_drop': round(drop, 4), 'dbic': round(dbic, 1),
+                                'n_eff': round(n_eff, 1), 'iterations': int(result.iterations),
+                                'parameters': dict(zip(fitted.free, (float(v) for v in result.params)))})
+            if _accept(dbic, drop) and (best is None or dbic < best[3]):
+                best = (e, fitted, result, dbic, n_eff, drop, s)
+        if best is None:
+            log['decision'] = 'no candidate passes (dBIC < -%g and residual drop >= %g)' % (BIC_STRONG, MIN_RSS_DROP)
+            break
+        e, fitted, result, dbic, n_eff, drop, s = best
+        how = (f'the score test ranked it {screen.index(s) + 1} of {len(screen)} candidates (predicted '
+               f'{100 * s["predicted_rss_drop"]:.1f} % drop)')
+        added.append(_entry(e, fitted, result, current, dbic, n_eff, drop, how, problem.free))
+        log['decision'] = f'added {e.key}'
+        values = dict(zip(fitted.free, (float(v) for v in result.params)))
+        state = _state_with(problem, state.effects + [e], values)
+        current, final_free = result.evaluation, list(fitted.free)
+        # backward step
+        for old in list(state.effects[:-1]):
+            reduced = _state_with(problem, [x for x in state.effects if x.key != old.key], values)
+            r_problem, r_result = _fit_state(reduced, problem)
+            r_ev = r_result.evaluation
+            if not r_ev.ok:
+                continue
+            n_eff = effective_samples(current.residual)
+            keep_dbic = delta_bic(r_ev.cost, current.cost, old.size, n_eff)
+            keep_drop = 1.0 - current.cost / r_ev.cost if r_ev.cost > 0 else 0.0
+            log.setdefault('backward', []).append({'effect': old.key, 'dbic_to_keep': round(keep_dbic, 1),
+                                                   'rss_drop_to_keep': round(keep_drop, 4)})
+            if not _accept(keep_dbic, keep_drop):
+                dropped_any = True
+                log['decision'] += f', dropped {old.key}'
+                values = dict(zip(r_problem.free, (float(v) for v in r_result.params)))
+                state = _state_with(problem, reduced.effects, values)
+                current, final_free = r_ev, list(r_problem.free)
+    if dropped_any:
+        added = _replay(problem, state.effects, declared_eval, dict(zip(problem.free, (float(v) for v in params))))
+    if added:
+        # every effect's parameters as identified jointly in the final model (the values when it was added are kept)
+        final = dict(zip(final_free, (float(v) for v in current.params)))
+        std, _ = parameter_covariance(current.jacobian, current.residual)
+        std = dict(zip(final_free, (float(v) for v in std)))
+        for entry, e in zip(added, state.effects):
+            entry['parameters_when_added'] = entry['parameters']
+            entry['parameters'] = reported_parameters(e, [final[n] for n in e.coefficients])
+            entry['coefficients'] = {n: final[n] for n in e.coefficients}
+            entry['coefficient_std'] = {n: std[n] for n in e.coefficients}
+    return {'effects_added': added, 'parameters': dict(zip(state.free, (float(v) for v in state.params))),
+            'error_after': problem.cost.errors(current.traj.q), 'rounds': rounds, 'cost': problem.cost.kind,
+            'declared_refit': dict(zip(problem.free, (float(v) for v in params))),
+            'wall_time_s': time.monotonic() - t0}
+
+
+def _replay(problem, effects, declared_eval, values) -> list:
+    """Effects_added entries for the final effect set, added in order from the declared fit."""
+    out, current, state = [], declared_eval, _state_with(problem, [], values)
+    for e in effects:
+        fitted, result = fit_with(state, problem, e)
+        ev = result.evaluation
+        n_eff = effective_samples(ev.residual)
+        dbic = delta_bic(current.cost, ev.cost, e.size, n_eff)
+        drop = 1.0 - ev.cost / current.cost if current.cost > 0 else 0.0
+        out.append(_entry(e, fitted, result, current, dbic, n_eff, drop,
+                          'kept by the backward step (an effect chosen earlier was dropped)', problem.free))
+        values = dict(zip(fitted.free, (float(v) for v in result.params)))
+        state = _state_with(problem, state.effects + [e], values)
+        current = ev
+    return out

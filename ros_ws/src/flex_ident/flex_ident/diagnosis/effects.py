@@ -1,0 +1,131 @@
+"""Candidate effects the declared model may lack, as named coefficients and model terms (CONTRACTS.md section 2:
+nothing but the URDF inertias and damping and the loop springs is declared).
+
+Each candidate is what a robotics engineer checks first when a model does not fit a recording:
+
+| key             | words in the report                     | coefficients (model terms)                               |
+|-----------------|-----------------------------------------|----------------------------------------------------------|
+| loop_damping    | loop joint viscous damping              | c_loop [N m s/rad] (ViscousDamping on every loop angle)  |
+| arm_viscous     | arm joint viscous friction (extra)      | c_arm [N m s/rad] (ViscousDamping on every arm joint)    |
+| arm_coulomb     | arm joint Coulomb friction              | f_arm [N m] (smoothed CoulombFriction on every arm joint)|
+| torque_bias     | torque sensor bias                      | b_<joint> [N m] per arm joint (ConstantForce = -bias)    |
+| torque_gain     | torque sensor gain                      | torque_input_scale = 1 / gain (the inputs' gain)         |
+| time_offset     | measurement delay (torque vs. encoders) | delay_s [s]: efforts used as tau_meas(t + delay_s)       |
+
+Every coefficient has a *null value* (0, or 1 for the gain) at which the model is the declared one, so the score at
+the null is the first-order evidence for the effect. ``time_offset`` is no model term: it shifts the measured
+torques in time (see :class:`~.closed_loop.TimeShiftedProblem`); a positive offset means the torque sensors lag the
+encoders, a negative one that the encoders lag the torque sensors (the two are indistinguishable up to a shift of
+the whole recording, which starts at rest).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mechanics.model import Coefficient, ConstantForce, CoulombFriction, ViscousDamping
+
+#: smoothing velocity of the Coulomb friction model [rad/s]
+COULOMB_VELOCITY_SCALE = 0.02
+DELAY_PARAMETER = 'delay_s'
+
+
+@dataclass(frozen=True)
+class Effect:
+    key: str
+    name: str                   # words a robotics engineer understands
+    coefficients: tuple         # coefficient names (model coefficients; DELAY_PARAMETER for the time offset)
+    null: tuple                 # value of each coefficient at which the effect is absent
+    lower: tuple
+    upper: tuple
+    one_sided: bool             # a physical effect with a sign (damping, friction): the score only counts >= 0
+
+    @property
+    def size(self) -> int:
+        return len(self.coefficients)
+
+
+def loop_coords(model) -> np.ndarray:
+    measured = set(int(i) for i in model.measured_coords)
+    return np.array([i for i in range(model.n) if i not in measured], dtype=np.int64)
+
+
+def arm_joint_names(model) -> list:
+    return [model.coord_names[i] for i in model.measured_coords]
+
+
+def candidate_effects(model) -> list[Effect]:
+    """The candidate effects for a model built from an experiment (arm + loop, or arm only)."""
+    out = []
+    if len(loop_coords(model)):
+        out.append(Effect('loop_damping', 'loop joint viscous damping', ('c_loop',), (0.0,), (0.0,), (100.0,), True))
+    out.append(Effect('arm_viscous', 'arm joint viscous friction (in addition to the URDF damping)', ('c_arm',),
+                      (0.0,), (0.0,), (100.0,), True))
+    out.append(Effect('arm_coulomb', 'arm joint Coulomb friction', ('f_arm',), (0.0,), (0.0,), (100.0,), True))
+    joints = arm_joint_names(model)
+    out.append(Effect('torque_bias', 'torque sensor bias (per joint)', tuple(f'b_{j}' for j in joints),
+                      (0.0,) * len(joints), (-np.inf,) * len(joints), (np.inf,) * len(joints), False))
+    out.append(Effect('torque_gain', 'torque sensor gain', ('torque_input_scale',), (1.0,), (0.2,), (5.0,), False))
+    out.append(Effect('time_offset', 'measurement delay between torque sensors and joint encoders',
+                      (DELAY_PARAMETER,), (0.0,), (-0.1,), (0.1,), False))
+    return out
+
+
+def with_effect(model, effect: Effect):
+    """A copy of ``model`` with the effect's coefficients (at their null values) and terms."""
+    n0 = len(model.coefficients)
+    arm = [int(i) for i in model.measured_coords]
+    if effect.key == 'time_offset':
+        return model
+    if effect.key == 'loop_damping':
+        coefs = [Coefficient('c_loop', 0.0, 'viscous damping of every loop joint', 'N m s/rad')]
+        terms = [ViscousDamping(int(i), n0) for i in loop_coords(model)]
+    elif effect.key == 'arm_viscous':
+        coefs = [Coefficient('c_arm', 0.0, 'viscous friction of every arm joint beyond the URDF damping',
+                             'N m s/rad')]
+        terms = [ViscousDamping(i, n0) for i in arm]
+    elif effect.key == 'arm_coulomb':
+        coefs = [Coefficient('f_arm', 0.0, 'Coulomb friction torque of every arm joint', 'N m')]
+        terms = [CoulombFriction(i, n0, COULOMB_VELOCITY_SCALE) for i in arm]
+    elif effect.key == 'torque_bias':
+        names = effect.coefficients
+        coefs = [Coefficient(c, 0.0, f'torque sensor bias of {c[2:]} (reads this much too high)', 'N m')
+                 for c in names]
+        # the sensor reads tau + b: the joint gets the reading minus b
+        terms = []
+        for k, i in enumerate(arm):
+            terms.append(ConstantForce(i, n0 + k))
+    elif effect.key == 'torque_gain':
+        coefs = [Coefficient('torque_input_scale', 1.0, 'applied torque per unit of torque reading (1 / sensor gain)',
+                             '')]
+        terms = []
+    else:
+        raise KeyError(effect.key)
+    out = model.extended(coefs, terms)
+    if effect.key == 'torque_gain':
+        out = copy.copy(out)
+        out.input_gain_coef = np.full_like(model.input_gain_coef, n0)
+        out._kernel = None
+    return out
+
+
+def reported_parameters(effect: Effect, values) -> dict:
+    """The effect's parameters in the units an engineer reads (bias as the sensor's offset, gain as the sensor's)."""
+    values = [float(v) for v in values]
+    if effect.key == 'torque_bias':
+        # ConstantForce coefficient = -bias
+        return {name: -v for name, v in zip(effect.coefficients, values)}
+    if effect.key == 'torque_gain':
+        return {'torque_sensor_gain': 1.0 / values[0]}
+    return dict(zip(effect.coefficients, values))
+
+
+def describe(effect: Effect, values) -> str:
+    p = reported_parameters(effect, values)
+    if effect.key == 'time_offset':
+        d = p[DELAY_PARAMETER]
+        return (f'torque sensors lag the joint encoders by {1e3 * d:.1f} ms' if d >= 0
+                else f'joint encoders lag the torque sensors by {-1e3 * d:.1f} ms')
+    return ', '.join(f'{k} = {v:.4g}' for k, v in p.items())

@@ -1,0 +1,114 @@
+"""The closed loop on measured data as a specification: candidate effects plug into the model as named coefficients
+and terms; the statistics discount time-correlated residuals; on a short independent (MuJoCo) recording with loop
+damping the diagnosis names loop damping and identifies it jointly with the stiffnesses, and on the same recording
+without it adds nothing."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flex_ident.diagnosis.closed_loop import delta_bic, diagnose, effective_samples
+from flex_ident.diagnosis.effects import candidate_effects, reported_parameters, with_effect
+from flex_ident.identification.feedback import lqr_tracking_feedback
+from flex_ident.identification.measurement import uniform_grid
+from flex_ident.identification.optimizers import optimize
+from flex_ident.identification.problem import IdentificationProblem
+from flex_ident.mechanics.assembly import build_model
+from flex_ident.mechanics.experiment import load_experiment
+from flex_ident.mechanics.model import ConstantForce, CoulombFriction, ViscousDamping
+from flex_ident.mechanics.static_equilibrium import static_equilibrium
+
+REPO = Path(__file__).resolve().parents[4]
+EXPERIMENT = REPO / 'bags' / 'example_loop6' / 'experiment.yaml'
+SHORT_MOTION = {'rest_s': 1.0, 'ramp_s': 1.0, 'end_rest_s': 0.5,
+                'amplitudes_rad': (0.06, 0.048, 0.072, 0.06, 0.09, 0.072, 0.15)}
+
+
+@pytest.fixture(scope='module')
+def model():
+    return build_model(load_experiment(EXPERIMENT))
+
+
+def test_candidates_are_named_coefficients_and_terms(model):
+    effects = {e.key: e for e in candidate_effects(model)}
+    assert set(effects) == {'loop_damping', 'arm_viscous', 'arm_coulomb', 'torque_bias', 'torque_gain', 'time_offset'}
+    n_loop = model.n - 7
+    damped = with_effect(model, effects['loop_damping'])
+    c = damped.coef_index('c_loop')
+    assert damped.coefficients[c].value == 0.0             # null value: the declared model
+    assert sum(isinstance(t, ViscousDamping) and t.coef == c for t in damped.terms) == n_loop
+    coulomb = with_effect(model, effects['arm_coulomb'])
+    assert sum(isinstance(t, CoulombFriction) for t in coulomb.terms) == 7
+    bias = with_effect(model, effects['torque_bias'])
+    assert sum(isinstance(t, ConstantForce) for t in bias.terms) == 7
+    gain = with_effect(model, effects['torque_gain'])
+    assert np.all(gain.input_gain_coef == gain.coef_index('torque_input_scale'))
+    assert np.all(model.input_gain_coef == -1)              # the original is untouched
+    # reported in the sensor's terms: the model's constant force is minus the bias, its input scale 1 / gain
+    assert reported_parameters(effects['torque_bias'], [0.2] + [0.0] * 6)['b_right_s0'] == -0.2
+    assert reported_parameters(effects['torque_gain'], [1.25]) == {'torque_sensor_gain': 0.8}
+
+
+def test_effective_samples_discount_correlated_residuals():
+    rng = np.random.default_rng(0)
+    white = rng.normal(size=(2000, 3))
+    assert effective_samples(white) == pytest.approx(6000, rel=0.1)
+    smooth = np.cumsum(white, axis=0)                        # a random walk: almost no independent samples
+    assert effective_samples(smooth) < 60
+    assert delta_bic(1.0, 0.999, 1, 6000) > 0                # a 0.1 % drop pays no parameter
+    assert delta_bic(1.0, 0.5, 1, 6000) < -1000
+
+
+def _problem(model, rec):
+    data = uniform_grid(rec.t_s, rec.position, rec.effort)
+    q_guess = np.zeros(model.n)
+    q_guess[model.measured_coords] = data.theta[0]
+    coef = model.coef_values()
+    eq = static_equilibrium(model, coef, q_guess)
+    fb = lqr_tracking_feedback(model, coef, eq.q, data.dt, horizon_steps=len(data.t_s))
+    return IdentificationProblem(model, data, ['k_theta', 'k_phi'], [1e-3, 1e-3], [1e3, 1e3], fb, substeps=2)
+
+
+@pytest.fixture(scope='module')
+def recordings():
+    from robot_bridge.sim.mujoco_loop import simulate_loop_experiment
+    noise = {'position_rad': 2e-4, 'velocity_rad_s': 5e-3, 'effort_nm': 0.1}
+    out = {}
+    for name, effects in (('clean', None), ('damped', {'loop_damping_nms': 0.1})):
+        out[name] = simulate_loop_experiment(str(EXPERIMENT), duration_s=4.0, motion=SHORT_MOTION, noise=noise,
+                                             seed=5, effects=effects)
+    return out
+
+
+@pytest.mark.parametrize('case', ['damped', 'clean'])
+def test_diagnosis_names_loop_damping_and_nothing_on_clean_data(model, recordings, case):
+    problem = _problem(model, recordings[case])
+    fit = optimize(problem, np.array([4.0, 2.5]), 'lm')
+    found = diagnose(problem, fit.params)          # every candidate effect
+    added = found['effects_added']
+    if case == 'clean':
+        assert added == []
+        return
+    assert [e['key'] for e in added] == ['loop_damping']
+    effect = added[0]
+    assert effect['name'] == 'loop joint viscous damping'
+    assert effect['parameters']['c_loop'] == pytest.approx(0.1, rel=0.15)
+    assert effect['error_after']['ee_rms_m'] < 0.8 * effect['error_before']['ee_rms_m']
+    k = effect['declared_parameters_after']
+    assert k['k_theta'] == pytest.approx(5.0, rel=0.05) and k['k_phi'] == pytest.approx(3.0, rel=0.05)
+    assert 'BIC' in effect['evidence']
+
+
+def test_torque_sensor_delay_is_found_and_measured(model, recordings):
+    """Efforts recorded 30 ms late (shifted by three samples): the time offset is named, positive (torque sensors
+    lag), and measured to a few milliseconds."""
+    rec = recordings['clean']
+    late = type('Recording', (), {'t_s': rec.t_s, 'position': rec.position,
+                                  'effort': np.concatenate([np.repeat(rec.effort[:1], 3, axis=0), rec.effort[:-3]])})
+    problem = _problem(model, late)
+    fit = optimize(problem, np.array([4.0, 2.5]), 'lm')
+    candidates = [e for e in candidate_effects(model) if e.key in ('time_offset', 'loop_damping', 'arm_viscous')]
+    added = diagnose(problem, fit.params, candidates=candidates)['effects_added']
+    assert [e['key'] for e in added] == ['time_offset']
+    assert added[0]['parameters']['delay_s'] == pytest.approx(0.03, abs=0.005)
+    assert 'torque sensors lag' in added[0]['evidence']
