@@ -5,8 +5,10 @@
 2. The recording is summarised (bag-tools info) and checked message by message against the original.
 3. flex-ident identifies the loop's spring constants from the recording (report.json + plots) and compares them
    with the simulator's truth.
-4. rod-deploy perceives a drawn pattern (a synthetic pen stroke of known centreline) into an ordered path in metres.
-5. rod-deploy solves the optimal grasp at the published test point (ls_bar 13.68, ks_bar 2087, kappa_bar 0.1).
+4. The closed loop: MuJoCo records the small example loop with joint damping the model does not declare;
+   flex-ident identify --diagnose finds it, identifies it with the springs and reports the error before and after.
+5. rod-deploy perceives a drawn pattern (a synthetic pen stroke of known centreline) into an ordered path in metres.
+6. rod-deploy solves the optimal grasp at the published test point (ls_bar 13.68, ks_bar 2087, kappa_bar 0.1).
 Outputs go to demo_out/ (overwritten each run).
 """
 import argparse
@@ -108,7 +110,30 @@ def main():
           f"{report['wall_time_s']:.1f} s")
     print(f"  report and plots: {out / 'identification'}")
 
-    step('4. perception of a drawn pattern (rod-deploy perceive)')
+    step('4. the closed loop: a recording with an effect nobody declared (flex-ident identify --diagnose)')
+    from robot_bridge.bagio.contract import write_joint_recording
+    from robot_bridge.sim.mujoco_loop import Effects, MeasurementNoise, simulate_loop_experiment
+    small = ROOT / 'bags' / 'example_loop6'
+    print('  MuJoCo: the 6-link example loop with viscous damping 0.05 N m s/rad in its joints (not in the model)')
+    rec = simulate_loop_experiment(small / 'experiment.yaml', 10.0, k_theta=5.0, k_phi=3.0, seed=1,
+                                   noise=MeasurementNoise(2e-4, 5e-3, 0.1), effects=Effects(loop_damping_nms=0.05))
+    write_joint_recording(out / 'damped_recording', rec.joint_recording())
+    status = flex_ident_main(['identify', '--bag', str(out / 'damped_recording'), '--experiment',
+                              str(small / 'experiment.yaml'), '--out', str(out / 'diagnosis'), '--diagnose',
+                              '--quiet', '--no-plots'])
+    if status != 0:
+        return status
+    report = json.loads((out / 'diagnosis' / 'report.json').read_text())
+    for effect in report['effects_added']:
+        values = ', '.join(f'{k} = {v:.4g}' for k, v in effect['parameters'].items())
+        print(f"  found: {effect['name']} ({values}; simulator truth 0.05); end-effector RMS "
+              f"{1000 * effect['error_before']['ee_rms_m']:.3f} -> {1000 * effect['error_after']['ee_rms_m']:.3f} mm")
+    if not report['effects_added']:
+        print('  found: no missing effect')
+    print(f"  k_theta = {report['parameters']['k_theta']:.4f}, k_phi = {report['parameters']['k_phi']:.4f} "
+          f"(truth 5, 3); report: {out / 'diagnosis' / 'report.json'}")
+
+    step('5. perception of a drawn pattern (rod-deploy perceive)')
     import cv2
     import numpy as np
     from rod_deploy.cli.main import main as rod_deploy_main
@@ -128,7 +153,7 @@ def main():
           f'{np.sqrt(np.mean(dist ** 2)):.2f} px RMS')
     print(f"  path.csv, pattern.txt (metres) and overlay.png in {out}")
 
-    step('5. optimal grasp for the published test point (rod-deploy grasp)')
+    step('6. optimal grasp for the published test point (rod-deploy grasp)')
     status = rod_deploy_main(['grasp', '--ls', '13.68', '--ks', '2087', '--kappa', '0.1'])
     return status
 
