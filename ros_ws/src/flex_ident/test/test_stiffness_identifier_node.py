@@ -42,8 +42,8 @@ class FakeIdentification:
         if not block:
             self.release.set()
 
-    def __call__(self, bag_path, experiment_path, out_dir, method='lm', progress=None):
-        self.calls.append((bag_path, experiment_path, out_dir, method))
+    def __call__(self, bag_path, experiment_path, out_dir, method='lm', progress=None, diagnose=False):
+        self.calls.append((bag_path, experiment_path, out_dir, method) + (('diagnose',) if diagnose else ()))
         self.entered.set()
         for i in range(3):
             progress({'stage': 'optimize', 'iteration': i, 'cost': 1.0 / (i + 1), 'fraction': (i + 1) / 3})
@@ -96,6 +96,10 @@ def test_topic_request_runs_the_job_with_parameter_fallbacks(ros_context, wait_f
     assert wait_for(lambda: listener.results)
     assert listener.results[-1] == REPORT
     assert fake.calls == [('b', 'e.yaml', str(tmp_path / 'o'), 'adjoint')]
+    listener.results.clear()
+    listener.request_pub.publish(String(data=json.dumps({'bag': 'b2', 'experiment': 'e.yaml', 'diagnose': True})))
+    assert wait_for(lambda: listener.results)
+    assert fake.calls[-1] == ('b2', 'e.yaml', str(tmp_path / 'o'), 'adjoint', 'diagnose')
     assert wait_for(lambda: 'done' in listener.values('state'))
     assert listener.values('stage').count('optimize') >= 1          # progress reached the status topic
     assert set(listener.levels()) == {DiagnosticStatus.OK}
@@ -144,7 +148,8 @@ def test_result_is_latched_for_late_subscribers(ros_context, wait_for, monkeypat
     assert late.results == [REPORT]
 
 
-@pytest.mark.parametrize('bad', ['[1, 2]', json.dumps({'experiment': 'e'})])
+@pytest.mark.parametrize('bad', ['[1, 2]', json.dumps({'experiment': 'e'}),
+                                 json.dumps({'bag': 'b', 'experiment': 'e', 'diagnose': 'yes'})])
 def test_malformed_requests_do_not_start_jobs(ros_context, wait_for, monkeypatch, bad):
     fake = FakeIdentification()
     node, listener = start(ros_context, wait_for, monkeypatch, fake)

@@ -213,10 +213,12 @@ def warm_start(problem, p0, method, first_window_s=2.5, progress: Progress | Non
 
 
 def run_identification(bag_path: str, experiment_path: str, out_dir: str, method: str = 'lm',
-                       progress: Callable[[dict], None] | None = None) -> dict:
+                       progress: Callable[[dict], None] | None = None, diagnose: bool = False) -> dict:
     """Identify the experiment's parameters from the bag; write ``out_dir/report.json`` (+ plots); return the report.
 
     method: 'lm' (Levenberg-Marquardt, default), 'lbfgsb' (L-BFGS-B with the adjoint gradient) or 'steepest' (the
-    paper's projected steepest descent with Armijo steps). Raises ValueError subclasses on bad input.
+    paper's projected steepest descent with Armijo steps). diagnose: also run the closed loop (effects_added).
+    Raises ValueError subclasses on bad input.
     """
-    return identify(bag_path, experiment_path, out_dir, IdentificationSettings(method=method), progress).report
+    settings = IdentificationSettings(method=method, diagnose=diagnose)
+    return identify(bag_path, experiment_path, out_dir, settings, progress).report

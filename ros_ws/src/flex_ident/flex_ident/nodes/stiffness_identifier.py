@@ -1,7 +1,8 @@
 """stiffness_identifier: identify a flexible object's stiffness from a recorded bag, on request.
 
 Requests (one job at a time; a request that arrives while a job runs is refused with a WARN status)
-  /identification/request (std_msgs/String)  JSON {"bag": ..., "experiment": ..., "out": ..., "method": ...};
+  /identification/request (std_msgs/String)  JSON {"bag": ..., "experiment": ..., "out": ..., "method": ...,
+                                             "diagnose": true|false};
                                              keys left out take the parameter values
   ~/run (std_srvs/Trigger)                   run with the current parameters; answers at once (the job runs in a
                                              worker thread and reports on the topics below)
@@ -10,6 +11,7 @@ Parameters
   experiment (string)   experiment YAML (CONTRACTS.md section 2)
   out (string)          output directory for report.json and plots (default: identification_<bag name>)
   method (string)       optimizer passed to the identification (default 'lm')
+  diagnose (bool)       also run the closed loop: find, add and identify effects the model lacks (default false)
   run_on_start (bool)   start a job with the parameters as soon as the node is up (default false)
 Publishes
   /identification/status (diagnostic_msgs/DiagnosticArray)  progress (stage, iteration, cost, fraction) while a job
@@ -50,10 +52,10 @@ RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=Rel
                       durability=DurabilityPolicy.VOLATILE)
 
 
-def run_identification(bag_path, experiment_path, out_dir, method='lm', progress=None) -> dict:
+def run_identification(bag_path, experiment_path, out_dir, method='lm', progress=None, diagnose=False) -> dict:
     """The identification (imported when first used, so the node starts even if it is unavailable)."""
     from flex_ident.identification.identify import run_identification as identify
-    return identify(bag_path, experiment_path, out_dir, method=method, progress=progress)
+    return identify(bag_path, experiment_path, out_dir, method=method, progress=progress, diagnose=diagnose)
 
 
 class RequestError(ValueError):
@@ -66,16 +68,20 @@ class IdentificationRequest:
     experiment: str
     out: str
     method: str
+    diagnose: bool = False
 
     @classmethod
-    def from_values(cls, bag, experiment, out, method) -> 'IdentificationRequest':
+    def from_values(cls, bag, experiment, out, method, diagnose=False) -> 'IdentificationRequest':
         bag, experiment = str(bag or '').strip(), str(experiment or '').strip()
         if not bag:
             raise RequestError('no bag given (request key "bag" or parameter bag)')
         if not experiment:
             raise RequestError('no experiment given (request key "experiment" or parameter experiment)')
         out = str(out or '').strip() or f'identification_{Path(bag.rstrip("/")).name}'
-        return cls(bag=bag, experiment=experiment, out=out, method=str(method or 'lm').strip() or 'lm')
+        if not isinstance(diagnose, bool):
+            raise RequestError(f'"diagnose" must be true or false, got {diagnose!r}')
+        return cls(bag=bag, experiment=experiment, out=out, method=str(method or 'lm').strip() or 'lm',
+                   diagnose=diagnose)
 
 
 def _json_default(value):
@@ -95,6 +101,8 @@ class StiffnessIdentifier(Node):
         self.declare_parameter('out', '', ParameterDescriptor(
             description='output directory (default: identification_<bag name>)'))
         self.declare_parameter('method', 'lm', ParameterDescriptor(description='optimizer, e.g. lm'))
+        self.declare_parameter('diagnose', False, ParameterDescriptor(
+            description='also find, add and identify effects the model lacks (the closed loop)'))
         run_on_start = self.declare_parameter('run_on_start', False, ParameterDescriptor(
             description='start a job with the parameters once the node is up')).value
         self._lock = threading.Lock()
@@ -120,7 +128,7 @@ class StiffnessIdentifier(Node):
             return self._worker is not None and self._worker.is_alive()
 
     def _parameter_values(self) -> dict:
-        return {k: self.get_parameter(k).value for k in ('bag', 'experiment', 'out', 'method')}
+        return {k: self.get_parameter(k).value for k in ('bag', 'experiment', 'out', 'method', 'diagnose')}
 
     def _on_request(self, msg: String):
         try:
@@ -187,7 +195,7 @@ class StiffnessIdentifier(Node):
 
         try:
             report = run_identification(request.bag, request.experiment, request.out, method=request.method,
-                                        progress=progress)
+                                        progress=progress, diagnose=request.diagnose)
             if not isinstance(report, dict):
                 raise TypeError(f'identification returned {type(report).__name__}, expected a dict')
             text = json.dumps(report, default=_json_default)
