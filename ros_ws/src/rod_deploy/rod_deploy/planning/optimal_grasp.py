@@ -365,6 +365,40 @@ def constraints_satisfied(sol, tol=1e-9):
     return bool(np.min(sol.r[1:, 2]) >= -tol and sol.clamp_force[2] >= -tol)
 
 
+def _last_feasible_radius(solve_at, th, r0, sol0, step, direction, delta):
+    """From the admissible grasp (r0, sol0) on the ray at angle ``th``, step along it in ``direction`` (+1 out,
+    -1 in; each accepted step 1.5 times longer) until a solve fails, violates Eq. 12 or r reaches 0, then bisect
+    down to ``delta``; returns the last admissible radius."""
+    ok_r, ok_sol, bad_r = r0, sol0, None
+    while bad_r is None:
+        r_try = ok_r + direction * step
+        if r_try <= 0:
+            bad_r = 0.0
+            break
+        try:
+            trial = solve_at(r_try, th, ok_sol)
+        except BVPError:
+            bad_r = r_try
+            break
+        if constraints_satisfied(trial):
+            ok_sol, ok_r = trial, r_try
+            step *= 1.5
+        else:
+            bad_r = r_try
+    while abs(bad_r - ok_r) > delta:
+        mid = 0.5 * (ok_r + bad_r)
+        try:
+            trial = solve_at(mid, th, ok_sol)
+            admissible = constraints_satisfied(trial)
+        except BVPError:
+            admissible = False
+        if admissible:
+            ok_sol, ok_r = trial, mid
+        else:
+            bad_r = mid
+    return ok_r
+
+
 def discover_manifold_boundary(ls_bar, ks_bar, angles, delta=1e-3, seed=None):
     """Paper Alg. 1 for the planar problem: along rays from q_C at angle theta (from +x, in the x-z plane),
     bisect for the outer boundary (F_z -> 0, region I) and the inner boundary (table contact, region III) of the
@@ -395,67 +429,10 @@ def discover_manifold_boundary(ls_bar, ks_bar, angles, delta=1e-3, seed=None):
                 break
         if not ok or not constraints_satisfied(cur):
             continue
-        inside = cur
-        r_in = rad0
-        # outer boundary: increase r until F_z < 0 or the solve fails, then bisect
-        r_out, step = None, 0.02 * L
-        while r_out is None:
-            r_try = r_in + step
-            try:
-                trial = solve_at(r_try, th, inside)
-            except BVPError:
-                r_out = r_try
-                break
-            if constraints_satisfied(trial):
-                inside, r_in = trial, r_try
-                step *= 1.5
-            else:
-                r_out = r_try
-        lo_sol, lo, hi = inside, r_in, r_out
-        while hi - lo > delta:
-            mid = 0.5 * (lo + hi)
-            try:
-                trial = solve_at(mid, th, lo_sol)
-                okm = constraints_satisfied(trial)
-            except BVPError:
-                okm = False
-            if okm:
-                lo_sol, lo = trial, mid
-            else:
-                hi = mid
-        out[a, 0] = (lo * np.cos(th), lo * np.sin(th))
-        # inner boundary: decrease r until contact with the table
-        lo_sol2, r_ok, step, r_bad = cur, r_in, 0.05 * L, None
-        r_ok = rad0
-        lo_sol2 = cur
-        while r_bad is None:
-            r_try = r_ok - step
-            if r_try <= 0:
-                r_bad = 0.0
-                break
-            try:
-                trial = solve_at(r_try, th, lo_sol2)
-            except BVPError:
-                r_bad = r_try
-                break
-            if constraints_satisfied(trial):
-                lo_sol2, r_ok = trial, r_try
-                step *= 1.5
-            else:
-                r_bad = r_try
-        hi_r, lo_r = r_ok, r_bad
-        while hi_r - lo_r > delta:
-            mid = 0.5 * (lo_r + hi_r)
-            try:
-                trial = solve_at(mid, th, lo_sol2)
-                okm = constraints_satisfied(trial)
-            except BVPError:
-                okm = False
-            if okm:
-                lo_sol2, hi_r = trial, mid
-            else:
-                lo_r = mid
-        out[a, 1] = (hi_r * np.cos(th), hi_r * np.sin(th))
+        # outer boundary: increase r until F_z < 0 or the solve fails; inner: decrease r until table contact
+        for side, (step, direction) in enumerate(((0.02 * L, 1.0), (0.05 * L, -1.0))):
+            r = _last_feasible_radius(solve_at, th, rad0, cur, step, direction, delta)
+            out[a, side] = (r * np.cos(th), r * np.sin(th))
     return out
 
 
