@@ -83,7 +83,8 @@ def build_report(problem, result, initial, experiment, bag_path, method, notes, 
     return report
 
 
-def _json_default(value):
+def json_default(value):
+    """numpy scalars/arrays and paths in a report -> JSON (``json.dumps(..., default=json_default)``)."""
     if hasattr(value, 'tolist'):
         return value.tolist()
     if isinstance(value, Path):
@@ -97,6 +98,6 @@ def write_report(out_dir, report: dict) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     path = out / 'report.json'
     tmp = out / '.report.json.tmp'
-    tmp.write_text(json.dumps(report, indent=2, default=_json_default))
+    tmp.write_text(json.dumps(report, indent=2, default=json_default))
     os.replace(tmp, path)
     return path

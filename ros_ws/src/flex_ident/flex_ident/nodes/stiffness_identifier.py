@@ -37,6 +37,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
+from flex_ident.identification.report import json_default
 from robot_bridge.nodes.common import run_node
 
 NODE_NAME = 'stiffness_identifier'
@@ -82,15 +83,6 @@ class IdentificationRequest:
             raise RequestError(f'"diagnose" must be true or false, got {diagnose!r}')
         return cls(bag=bag, experiment=experiment, out=out, method=str(method or 'lm').strip() or 'lm',
                    diagnose=diagnose)
-
-
-def _json_default(value):
-    """numpy scalars/arrays and paths in a report -> JSON."""
-    if hasattr(value, 'tolist'):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f'{type(value).__name__} is not JSON serializable')
 
 
 class StiffnessIdentifier(Node):
@@ -198,7 +190,7 @@ class StiffnessIdentifier(Node):
                                         progress=progress, diagnose=request.diagnose)
             if not isinstance(report, dict):
                 raise TypeError(f'identification returned {type(report).__name__}, expected a dict')
-            text = json.dumps(report, default=_json_default)
+            text = json.dumps(report, default=json_default)
         except Exception as exc:   # noqa: BLE001 - a failed job is reported, never crashes the node
             if not isinstance(exc, ValueError):
                 self.get_logger().error(''.join(traceback.format_exception(exc)))
@@ -240,7 +232,7 @@ class StiffnessIdentifier(Node):
         self._publish_status(DiagnosticStatus.ERROR, prefix + message,
                              {'state': 'error', 'job_id': job_id if job_id is not None else '', **request})
         result = {'error': str(exc), 'error_type': type(exc).__name__, 'request': request}
-        self._publish(self.result_pub, String(data=json.dumps(result, default=_json_default)))
+        self._publish(self.result_pub, String(data=json.dumps(result, default=json_default)))
 
     def _publish_heartbeat(self):
         if self.busy:
