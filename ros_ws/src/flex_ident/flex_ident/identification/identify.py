@@ -118,16 +118,17 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     p0 = np.array([p.initial for p in specs], float)
     max_iterations = settings.max_iterations or (experiment.identify.max_iterations if method == 'lm' else None)
 
-    initial = problem.evaluate(p0, jacobian=False)
-    if not initial.ok:
-        raise IdentificationInputError(f'the model cannot be simulated at the initial parameters: {initial.failure} '
-                                       f'(bag {bag_path}, experiment {experiment.path})')
-    stages = []
-    start = p0
-    if settings.continuation:
-        start, stages = warm_start(problem, p0, method, settings.first_window_s, progress)
-    offset = sum(stage['iterations'] for stage in stages)
-    evaluations = {0: initial}
+    windows = warm_start_windows(problem.data, settings.first_window_s) if settings.continuation else []
+    initial, stages, start, rescue_above = None, [], p0, 'auto'
+    if windows:
+        # the error before is that of the whole recording at the initial guess, whatever the warm start does
+        initial = problem.evaluate(p0, jacobian=False)
+        if not initial.ok:
+            raise IdentificationInputError(f'the model cannot be simulated at the initial parameters: '
+                                           f'{initial.failure} (bag {bag_path}, experiment {experiment.path})')
+        rescue_above = RESCUE_COST_FRACTION * initial.cost
+    offset = 0
+    evaluations = {0: initial} if initial is not None else {}
 
     def on_iteration(info):
         iteration = info['iteration'] + offset
@@ -135,13 +136,16 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
         _notify(progress, stage='optimize', iteration=iteration, cost=info['cost'],
                 fraction=info['fraction'], parameters=dict(zip(problem.free, info['params'])))
 
-    _notify(progress, stage='optimize', iteration=offset, fraction=0.0)
     try:
-        # the rescue scan compares with the user's initial guess, whatever the warm start did
-        result = optimize(problem, start, method, max_iterations, on_iteration,
-                          rescue_above=RESCUE_COST_FRACTION * initial.cost)
+        if windows:
+            start, stages = warm_start(problem, p0, method, windows, progress)
+            offset = sum(stage['iterations'] for stage in stages)
+        _notify(progress, stage='optimize', iteration=offset, fraction=0.0)
+        result = optimize(problem, start, method, max_iterations, on_iteration, rescue_above=rescue_above)
     except RuntimeError as exc:
         raise IdentificationInputError(f'{exc} (bag {bag_path}, experiment {experiment.path})') from None
+    if initial is None:
+        initial = evaluations[0]
     if stages:
         for entry in result.history:
             entry['iteration'] += offset
@@ -187,28 +191,35 @@ def add_diagnosis(report: dict, problem, result, progress: Progress | None = Non
         report['error_after'] = found['error_after']
 
 
-def warm_start(problem, p0, method, first_window_s=2.5, progress: Progress | None = None):
-    """Horizon continuation: identify on the first 2.5 s, 5 s, 10 s, ... of the recording (windows shorter than 3/4
-    of it), each stage starting from the last one's result; returns (parameters, stages).
+def warm_start_windows(data, first_window_s=2.5) -> list[float]:
+    """The warm start's windows [s]: 2.5, 5, 10, ... while shorter than 3/4 of the recording."""
+    duration = float(data.t_s[-1] - data.t_s[0])
+    windows, window = [], float(first_window_s)
+    while 0 < window < 0.75 * duration:
+        windows.append(window)
+        window *= 2
+    return windows
+
+
+def warm_start(problem, p0, method, windows, progress: Progress | None = None):
+    """Horizon continuation: identify on the first ``windows`` seconds of the recording in turn (see
+    :func:`warm_start_windows`), each stage starting from the last one's result; returns (parameters, stages).
 
     Far from the truth a soft loop driven through a long, wide motion moves chaotically: the cost of the whole
     recording has many local minima and its sensitivities explode, while the cost of a short window is smooth. Each
     doubling keeps the start inside the basin of the true parameters."""
     data = problem.data
     duration = float(data.t_s[-1] - data.t_s[0])
-    stages, params, window = [], np.asarray(p0, float), float(first_window_s)
-    while 0 < window < 0.75 * duration:
-        samples = int(round(window / data.dt)) + 1
-        short = problem.truncated(samples)
+    stages, params = [], np.asarray(p0, float)
+    for window in windows:
+        short = problem.truncated(int(round(window / data.dt)) + 1)
         _notify(progress, stage='warm start', window_s=window, fraction=window / duration)
-        result = optimize(short, params, method, None, None,
-                          rescue_above='auto' if not stages else None)
+        result = optimize(short, params, method, None, None, rescue_above='auto' if not stages else None)
         params = result.params
         stages.append({'window_s': window, 'iterations': int(result.iterations), 'simulations': int(result.evaluations),
                        'parameters': dict(zip(problem.free, (float(v) for v in params))),
                        'cost': float(result.evaluation.cost), 'message': result.message})
         problem.substeps = max(problem.substeps, short.substeps)
-        window *= 2
     return params, stages
 
 
