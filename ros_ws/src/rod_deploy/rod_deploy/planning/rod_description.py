@@ -1,0 +1,100 @@
+"""Rod description YAML (CONTRACTS.md section 4): what the planner, the simulator and the nodes know of a rod.
+
+```yaml
+length: 0.9          # [m] whole rod
+radius: 0.002        # h [m]
+L_gb: 0.034          # [m]; or loop_height: h_f [m] (L_gb = h_f / 0.9066); or youngs_modulus [Pa] with density [kg/m^3]
+friction: 0.5        # optional Coulomb coefficient with the table
+g: 9.81              # optional [m/s^2], used only with youngs_modulus/density
+```
+"""
+from dataclasses import dataclass
+import math
+
+import yaml
+
+from .scaling import RodScales
+
+_KNOWN = {'length', 'radius', 'L_gb', 'loop_height', 'youngs_modulus', 'density', 'friction', 'g', 'name'}
+
+
+class RodDescriptionError(ValueError):
+    """A rod description that cannot be used (missing, non-physical or unknown fields)."""
+
+
+@dataclass(frozen=True)
+class RodDescription:
+    """A rod in SI units with its deployment scales (L_gb and ks_bar with the contract's conventions)."""
+
+    length_m: float
+    radius_m: float
+    gravito_bending_length_m: float
+    friction: float = None            # Coulomb coefficient with the table, None if not given
+    youngs_modulus_pa: float = None
+    density_kg_m3: float = None
+    name: str = ''
+
+    @property
+    def scales(self):
+        return RodScales(self.gravito_bending_length_m, self.radius_m)
+
+    @property
+    def ks_bar(self):
+        return self.scales.ks_bar
+
+    @property
+    def length_bar(self):
+        """Rod length in units of L_gb (the largest suspended length the planner may ask for)."""
+        return self.length_m / self.gravito_bending_length_m
+
+
+def rod_description_from_dict(d, source='rod description'):
+    """Validate a mapping (as read from YAML or ROS parameters) into a :class:`RodDescription`."""
+    if not isinstance(d, dict):
+        raise RodDescriptionError(f'{source}: expected a mapping with length, radius and L_gb (or loop_height, '
+                                  f'or youngs_modulus with density)')
+    unknown = sorted(set(d) - _KNOWN)
+    if unknown:
+        raise RodDescriptionError(f'{source}: unknown field(s) {", ".join(unknown)} '
+                                  f'(known: {", ".join(sorted(_KNOWN))})')
+    for key in ('length', 'radius'):
+        if key not in d:
+            raise RodDescriptionError(f'{source}: missing "{key}" [m]')
+    values = {}
+    for key in _KNOWN - {'name'}:
+        if d.get(key) is None:
+            continue
+        try:
+            v = float(d[key])
+        except (TypeError, ValueError):
+            raise RodDescriptionError(f'{source}: "{key}" must be a number, got {d[key]!r}') from None
+        if not math.isfinite(v) or (v <= 0 and key != 'friction') or v < 0:
+            raise RodDescriptionError(f'{source}: "{key}" must be {"non-negative" if key == "friction" else "positive"}'
+                                      f' and finite, got {d[key]!r}')
+        values[key] = v
+    try:
+        scales = RodScales.from_description(values['radius'], L_gb=values.get('L_gb'),
+                                            loop_height=values.get('loop_height'),
+                                            youngs_modulus=values.get('youngs_modulus'),
+                                            density=values.get('density'), g=values.get('g', 9.81))
+    except ValueError as e:
+        raise RodDescriptionError(f'{source}: {e}') from None
+    if values['length'] <= 2.0 * scales.gravito_bending_length_m:
+        raise RodDescriptionError(f'{source}: length {values["length"]} m is not longer than 2 L_gb '
+                                  f'({2 * scales.gravito_bending_length_m:.4g} m): nothing left to deploy')
+    return RodDescription(length_m=values['length'], radius_m=values['radius'],
+                          gravito_bending_length_m=scales.gravito_bending_length_m,
+                          friction=values.get('friction'), youngs_modulus_pa=values.get('youngs_modulus'),
+                          density_kg_m3=values.get('density'), name=str(d.get('name', '')))
+
+
+def load_rod_description(path):
+    """Read and validate a rod description YAML file."""
+    try:
+        with open(path) as f:
+            d = yaml.safe_load(f)
+    except OSError as e:
+        raise RodDescriptionError(f'cannot read rod description {path}: {e.strerror}') from None
+    except yaml.YAMLError as e:
+        raise RodDescriptionError(f'rod description {path} is not valid YAML: {e}') from None
+    return rod_description_from_dict(d, source=str(path))
