@@ -3,6 +3,8 @@
     flex-ident identify --bag BAG --experiment EXP.yaml --out DIR [--method lm|lbfgsb|steepest]
                         [--cost end_effector|joint_angles] [--max-iterations N] [--no-continuation] [--no-plots]
                         [--diagnose] [--quiet]
+    flex-ident request  --bag BAG --experiment EXP.yaml [--out DIR] [--timeout S]   (to a running
+                        stiffness_identifier node: prints its report)
 
 --diagnose closes the loop: after k_theta, k_phi are identified, the residual is screened for the effects the declared
 model lacks (loop / arm viscous damping, arm Coulomb friction, torque sensor bias and gain, measurement delay); each
@@ -54,6 +56,8 @@ def _parser() -> argparse.ArgumentParser:
                         '(report: effects_added)')
     p.add_argument('--no-plots', action='store_true', help='write report.json only')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
+    from flex_ident.cli.request import register
+    register(sub)
     return parser
 
 
@@ -145,6 +149,9 @@ def main(argv=None) -> int:
     try:
         if args.command == 'identify':
             return identify_command(args)
+        if args.command == 'request':
+            from flex_ident.cli.request import request_command
+            return request_command(args)
     except ValueError as exc:          # every bad-input error of the project is a ValueError subclass
         message = ' '.join(str(exc).split())
         print(f'flex-ident: error: {message}', file=sys.stderr)

@@ -19,13 +19,12 @@ import time
 from collections import Counter
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from robot_bridge.bagio.contract import JOINT_STATE_TYPE
 from robot_bridge.bagio.raw import STORAGES, RawBagWriter, deserialize
-from robot_bridge.nodes.common import message_class, run_node
+from robot_bridge.nodes.common import declare_parameter, message_class, run_node
 
 DEFAULT_TOPICS = ['/joint_states', '/wrench']
 SUBSCRIPTION_DEPTH = 10000
@@ -48,12 +47,13 @@ class JointStateLogger(Node):
     def __init__(self, **kwargs):
         super().__init__('joint_state_logger', **kwargs)
         default_out = time.strftime('joint_log_%Y%m%d_%H%M%S', time.gmtime())
-        self.output = self.declare_parameter(
-            'output', default_out, ParameterDescriptor(description='bag directory to create')).value
-        self.storage = self.declare_parameter(
-            'storage', 'mcap', ParameterDescriptor(description="'mcap' or 'sqlite3'")).value
-        self.topics = list(self.declare_parameter(
-            'topics', DEFAULT_TOPICS, ParameterDescriptor(description='topics to record')).value)
+        self.output = declare_parameter(self, 'output', default_out, 'bag directory to create')
+        self.storage = declare_parameter(self, 'storage', 'mcap', "'mcap' or 'sqlite3'")
+        self.topics = declare_parameter(
+            self, 'topics', DEFAULT_TOPICS, 'topics to record', kind=list,
+            check=lambda v: None if v else f'must name at least one topic (default: {DEFAULT_TOPICS})')
+        if not self.output:
+            raise ValueError("parameter 'output' must name the bag directory to create")
         if self.storage not in STORAGES:
             raise ValueError(f"parameter storage='{self.storage}' must be one of {sorted(STORAGES)}")
         self._queue: queue.SimpleQueue = queue.SimpleQueue()

@@ -2,8 +2,9 @@
 
 Requests (one job at a time; a request that arrives while a job runs is refused with a WARN status)
   /identification/request (std_msgs/String)  JSON {"bag": ..., "experiment": ..., "out": ..., "method": ...,
-                                             "diagnose": true|false};
-                                             keys left out take the parameter values
+                                             "diagnose": true|false, "request_id": ...};
+                                             keys left out take the parameter values; request_id (any string)
+                                             is echoed in the result (``flex-ident request`` uses it)
   ~/run (std_srvs/Trigger)                   run with the current parameters; answers at once (the job runs in a
                                              worker thread and reports on the topics below)
 Parameters
@@ -31,14 +32,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from flex_ident.identification.report import json_default
-from robot_bridge.nodes.common import run_node
+from robot_bridge.nodes.common import declare_parameter, run_node
 
 NODE_NAME = 'stiffness_identifier'
 REQUEST_TOPIC = '/identification/request'
@@ -70,9 +70,10 @@ class IdentificationRequest:
     out: str
     method: str
     diagnose: bool = False
+    request_id: str = ''
 
     @classmethod
-    def from_values(cls, bag, experiment, out, method, diagnose=False) -> 'IdentificationRequest':
+    def from_values(cls, bag, experiment, out, method, diagnose=False, request_id='') -> 'IdentificationRequest':
         bag, experiment = str(bag or '').strip(), str(experiment or '').strip()
         if not bag:
             raise RequestError('no bag given (request key "bag" or parameter bag)')
@@ -82,21 +83,20 @@ class IdentificationRequest:
         if not isinstance(diagnose, bool):
             raise RequestError(f'"diagnose" must be true or false, got {diagnose!r}')
         return cls(bag=bag, experiment=experiment, out=out, method=str(method or 'lm').strip() or 'lm',
-                   diagnose=diagnose)
+                   diagnose=diagnose, request_id=str(request_id or ''))
 
 
 class StiffnessIdentifier(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter('bag', '', ParameterDescriptor(description='rosbag2 directory to identify from'))
-        self.declare_parameter('experiment', '', ParameterDescriptor(description='experiment YAML'))
-        self.declare_parameter('out', '', ParameterDescriptor(
-            description='output directory (default: identification_<bag name>)'))
-        self.declare_parameter('method', 'lm', ParameterDescriptor(description='optimizer, e.g. lm'))
-        self.declare_parameter('diagnose', False, ParameterDescriptor(
-            description='also find, add and identify effects the model lacks (the closed loop)'))
-        run_on_start = self.declare_parameter('run_on_start', False, ParameterDescriptor(
-            description='start a job with the parameters once the node is up')).value
+        bag = declare_parameter(self, 'bag', '', 'rosbag2 directory to identify from')
+        experiment = declare_parameter(self, 'experiment', '', 'experiment YAML')
+        declare_parameter(self, 'out', '', 'output directory (default: identification_<bag name>)')
+        declare_parameter(self, 'method', 'lm', 'optimizer: lm, lbfgsb or steepest')
+        declare_parameter(self, 'diagnose', False,
+                          'also find, add and identify effects the model lacks (the closed loop)')
+        run_on_start = declare_parameter(self, 'run_on_start', False,
+                                         'start a job with the parameters once the node is up')
         self._lock = threading.Lock()
         self._worker: threading.Thread | None = None
         self._closed = False
@@ -110,8 +110,11 @@ class StiffnessIdentifier(Node):
         self.run_srv = self.create_service(Trigger, '~/run', self._on_run)
         self._heartbeat = self.create_timer(HEARTBEAT_PERIOD_S, self._publish_heartbeat)
         self._start_timer = self.create_timer(0.0, self._start_from_parameters) if run_on_start else None
-        self.get_logger().info(f'ready: publish JSON on {REQUEST_TOPIC} or call '
+        self.get_logger().info(f'ready: publish JSON on {REQUEST_TOPIC} (e.g. with `flex-ident request`) or call '
                                f'{self.get_fully_qualified_name()}/run')
+        if bag and experiment and not run_on_start:
+            self.get_logger().info('bag and experiment are set but run_on_start is false: waiting for a request '
+                                   '(add -p run_on_start:=true to identify them now)')
 
     # -- requests ------------------------------------------------------------------------------------------------
     @property
@@ -120,7 +123,8 @@ class StiffnessIdentifier(Node):
             return self._worker is not None and self._worker.is_alive()
 
     def _parameter_values(self) -> dict:
-        return {k: self.get_parameter(k).value for k in ('bag', 'experiment', 'out', 'method', 'diagnose')}
+        values = {k: self.get_parameter(k).value for k in ('bag', 'experiment', 'out', 'method', 'diagnose')}
+        return dict(values, request_id='')
 
     def _on_request(self, msg: String):
         try:
@@ -190,7 +194,8 @@ class StiffnessIdentifier(Node):
                                         progress=progress, diagnose=request.diagnose)
             if not isinstance(report, dict):
                 raise TypeError(f'identification returned {type(report).__name__}, expected a dict')
-            text = json.dumps(report, default=json_default)
+            text = json.dumps(dict(report, request_id=request.request_id) if request.request_id else report,
+                              default=json_default)
         except Exception as exc:   # noqa: BLE001 - a failed job is reported, never crashes the node
             if not isinstance(exc, ValueError):
                 self.get_logger().error(''.join(traceback.format_exception(exc)))
@@ -232,6 +237,8 @@ class StiffnessIdentifier(Node):
         self._publish_status(DiagnosticStatus.ERROR, prefix + message,
                              {'state': 'error', 'job_id': job_id if job_id is not None else '', **request})
         result = {'error': str(exc), 'error_type': type(exc).__name__, 'request': request}
+        if isinstance(request, dict) and request.get('request_id'):
+            result['request_id'] = request['request_id']
         self._publish(self.result_pub, String(data=json.dumps(result, default=json_default)))
 
     def _publish_heartbeat(self):

@@ -54,8 +54,16 @@ class RawBagWriter:
         self.path = Path(path)
         if self.path.exists():
             raise BagError(f'output bag {self.path} already exists; choose a new directory')
-        self._writer = Writer(self.path, version=9, storage_plugin=storage_plugin(storage))
-        self._writer.open()
+        plugin = storage_plugin(storage)
+        parent = self.path.resolve().parent
+        if not parent.is_dir():
+            raise BagError(f'cannot create bag {self.path}: {parent} is not an existing directory')
+        self._writer = Writer(self.path, version=9, storage_plugin=plugin)
+        try:
+            self._writer.open()
+        except Exception as exc:    # OSError, rosbags' WriterError: not writable, no space, ...
+            shutil.rmtree(self.path, ignore_errors=True)
+            raise BagError(f'cannot create bag {self.path}: {exc}') from None
         self._connections = {}
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
@@ -105,8 +113,11 @@ def open_reader(path: str | Path) -> AnyReader:
     if path.is_dir() and not (path / 'metadata.yaml').exists():
         raise BagError(f'{path} has no metadata.yaml: not a rosbag2, or not closed cleanly '
                        f"(run 'bag-tools reindex {path}' to recover it)")
-    reader = AnyReader([path], default_typestore=TYPESTORE)
+    if path.is_file() and path.suffix not in ('.mcap', '.db3'):
+        raise BagError(f'{path} is not a rosbag2: give the bag directory (with metadata.yaml), '
+                       f'or an .mcap/.db3 file')
     try:
+        reader = AnyReader([path], default_typestore=TYPESTORE)
         reader.open()
     except Exception as exc:  # rosbags raises several types for corrupt files
         raise BagError(f'cannot read bag {path}: {exc}') from None

@@ -18,16 +18,17 @@ exit status 1.
 """
 from __future__ import annotations
 
+import sys
 import threading
 import time
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from robot_bridge.bagio.raw import BagError, iter_raw_messages, topic_types
-from robot_bridge.nodes.common import message_class, run_node
+from robot_bridge.nodes.common import declare_parameter, message_class, non_negative, run_node
 
 PUBLISHER_DEPTH = 10000
 
@@ -50,22 +51,19 @@ MATCH_GRACE_S = 0.1   # then this long for the subscribers' side of the match
 class BagPlayer(Node):
     def __init__(self, **kwargs):
         super().__init__('bag_player', **kwargs)
-        positive = ParameterDescriptor(floating_point_range=[FloatingPointRange(
-            from_value=1e-3, to_value=1e3, step=0.0)], description='speed factor')
-        self.bag = self.declare_parameter('bag', '', ParameterDescriptor(description='bag directory')).value
-        self.rate = self.declare_parameter('rate', 1.0, positive).value
-        self.start_offset = self.declare_parameter('start_offset', 0.0).value
-        self.loop = self.declare_parameter('loop', False).value
-        topics = list(self.declare_parameter('topics', [], ParameterDescriptor(
-            type=ParameterType.PARAMETER_STRING_ARRAY, description='topics to replay (default: all)')).value)
-        remap = list(self.declare_parameter('remap', [], ParameterDescriptor(
-            type=ParameterType.PARAMETER_STRING_ARRAY, description="'/from:=/to' renames")).value)
-        self.wait_for_subscribers = self.declare_parameter('wait_for_subscribers', 5.0).value
-        reliable = self.declare_parameter('reliable', True).value
+        self.bag = declare_parameter(self, 'bag', '', 'bag directory (required)')
+        self.rate = declare_parameter(self, 'rate', 1.0, 'speed factor (2.0 plays twice as fast)',
+                                      check=lambda v: None if 1e-3 <= v <= 1e3 else 'must be between 0.001 and 1000')
+        self.start_offset = declare_parameter(self, 'start_offset', 0.0, 'seconds of the bag to skip',
+                                              check=non_negative)
+        self.loop = declare_parameter(self, 'loop', False, 'replay forever')
+        topics = declare_parameter(self, 'topics', [], 'topics to replay (default: all)', kind=list)
+        remap = declare_parameter(self, 'remap', [], "'/from:=/to' topic renames", kind=list)
+        self.wait_for_subscribers = declare_parameter(
+            self, 'wait_for_subscribers', 5.0, 'seconds to wait for a first subscriber', check=non_negative)
+        reliable = declare_parameter(self, 'reliable', True, 'publish RELIABLE (true) or BEST_EFFORT')
         if not self.bag:
             raise ValueError("parameter 'bag' is required (the bag directory to replay)")
-        if self.start_offset < 0:
-            raise ValueError(f'start_offset must be >= 0 s, got {self.start_offset}')
         types = topic_types(self.bag)
         wanted = [t for t in topics if t]
         unknown = [t for t in wanted if t not in types]
@@ -115,6 +113,10 @@ class BagPlayer(Node):
                 self._play_once()
                 if not self.loop or self._stop.is_set():
                     break
+            if not self.context.ok() or self._stop.is_set():
+                # interrupted (Ctrl-C / SIGTERM): the ROS logger's context may be gone already
+                print(f'bag_player: stopped after {self.published} messages from {self.bag}', file=sys.stderr)
+                return
             for pub in self._topic_publishers.values():
                 pub.wait_for_all_acked(Duration(seconds=5))
             self.get_logger().info(f'played {self.published} messages from {self.bag}')
@@ -135,7 +137,12 @@ class BagPlayer(Node):
             delay = t_wall0 + (msg.timestamp_ns - t_bag0) * 1e-9 / self.rate - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-            self._topic_publishers[msg.topic].publish(msg.data)
+            try:
+                self._topic_publishers[msg.topic].publish(msg.data)
+            except RCLError:
+                if self._stop.is_set() or not self.context.ok():
+                    return          # Ctrl-C / SIGTERM shut the context down under us: stop quietly
+                raise
             self.published += 1
 
     def close(self):

@@ -1,11 +1,88 @@
-"""ROS glue shared by the nodes of every package: message-type lookup and the standard main()."""
+"""ROS glue shared by the nodes of every package: parameters, message-type lookup and the standard main()."""
 from __future__ import annotations
 
 import importlib
+import math
 import sys
 
 import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
+
+
+def declare_parameter(node, name: str, default, description: str, kind=None, check=None):
+    """Declare a parameter that works the way ROS users set it, and return its validated value.
+
+    Accepted from ``--ros-args -p name:=value``, a ``--params-file`` YAML and in-process overrides alike:
+    the parameter is dynamically typed (so an empty list, ``rate:=2`` for a float, or ``topics:="[]"`` do not
+    raise rclpy's type errors) and the value is coerced here to ``kind`` (default: the type of ``default``;
+    ``list`` means a list of strings, ``FLOAT_LIST`` a list of finite numbers). ``check(value)`` returns an error text (the value's constraint, e.g.
+    'must be > 0') or None. Bad values raise ValueError with one line naming the parameter, which
+    :func:`run_node` prints as ``<node>: error: ...`` with a non-zero exit.
+    """
+    kind = kind or type(default)
+    descriptor = ParameterDescriptor(description=description, dynamic_typing=True)
+    value = node.declare_parameter(name, default, descriptor).value
+    value = _coerce(name, value, kind, default)
+    problem = check(value) if check is not None else None
+    if problem:
+        raise ValueError(f"parameter '{name}' {problem}, got {value!r}")
+    return value
+
+
+FLOAT_LIST = 'float list'
+
+
+def _coerce(name, value, kind, default):
+    def bad(expected):
+        return ValueError(f"parameter '{name}' must be {expected}, got {value!r}")
+    if kind == FLOAT_LIST:
+        if value is None or (isinstance(value, (list, tuple, bytes)) and len(value) == 0):
+            return []
+        if (isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                     for v in value)):
+            values = [float(v) for v in value]
+            if all(math.isfinite(v) for v in values):
+                return values
+        raise bad('a list of finite numbers')
+    if kind is list:
+        if value is None or (isinstance(value, (list, tuple, bytes)) and len(value) == 0):
+            return []
+        if isinstance(value, str):
+            return [value] if value else []
+        if isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value):
+            return list(value)
+        raise bad('a list of strings')
+    if value is None:
+        return default
+    if kind is bool:
+        if isinstance(value, bool):
+            return value
+        raise bad('true or false')
+    if kind is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise bad('a number')
+        value = float(value)
+        if not math.isfinite(value):
+            raise bad('a finite number')
+        return value
+    if kind is int:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
+            raise bad('an integer')
+        return int(value)
+    if kind is str:
+        if isinstance(value, bool) or isinstance(value, (list, tuple, bytes)):
+            raise bad('a string')
+        return str(value)
+    raise TypeError(f'unsupported parameter kind {kind!r}')
+
+
+def positive(value):
+    return None if value > 0 else 'must be > 0'
+
+
+def non_negative(value):
+    return None if value >= 0 else 'must be >= 0'
 
 
 def message_class(msgtype: str):

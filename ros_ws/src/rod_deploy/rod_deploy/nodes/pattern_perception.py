@@ -23,17 +23,14 @@ import math
 import threading
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
 from sensor_msgs.msg import Image
 
+from robot_bridge.nodes.common import FLOAT_LIST, declare_parameter, non_negative, positive, run_node
 from rod_deploy.perception.pipeline import PerceptionConfig, PerceptionError, perceive
 from rod_deploy.perception.pixel_mapping import Homography, MappingError, ScaleOrigin
 
@@ -77,23 +74,18 @@ def yaw_quaternion(yaw: float):
 class PatternPerception(Node):
     def __init__(self, **kwargs):
         super().__init__('pattern_perception', **kwargs)
-        positive = ParameterDescriptor(floating_point_range=[FloatingPointRange(
-            from_value=1e-9, to_value=1e3, step=0.0)], description='table metres per pixel')
-        self.m_per_px = self.declare_parameter('m_per_px', 0.001, positive).value
-        self.origin_row = self.declare_parameter('origin_row', -1.0, ParameterDescriptor(
-            description='origin pixel row r0 (< 0: bottom row)')).value
-        self.origin_col = self.declare_parameter('origin_col', 0.0, ParameterDescriptor(
-            description='origin pixel column c0')).value
-        homography = list(self.declare_parameter('homography', Parameter.Type.DOUBLE_ARRAY, ParameterDescriptor(
-            description='row-major 3x3 H, (x, y, 1) ~ H (col, row, 1); unset or empty: use m_per_px')).value
-            or [])
-        step = self.declare_parameter('step_px', 2.0, ParameterDescriptor(
-            floating_point_range=[FloatingPointRange(from_value=0.1, to_value=100.0, step=0.0)],
-            description='point spacing along the path [px]')).value
-        self.object_index = self.declare_parameter('object_index', 0, ParameterDescriptor(
-            integer_range=[IntegerRange(from_value=0, to_value=1000, step=1)],
-            description='object to publish (0: the longest)')).value
-        best_effort = self.declare_parameter('best_effort_input', False).value
+        self.m_per_px = declare_parameter(self, 'm_per_px', 0.001, 'table metres per pixel', check=positive)
+        self.origin_row = declare_parameter(self, 'origin_row', -1.0, 'origin pixel row r0 (< 0: bottom row)')
+        self.origin_col = declare_parameter(self, 'origin_col', 0.0, 'origin pixel column c0')
+        homography = declare_parameter(
+            self, 'homography', [], 'row-major 3x3 H, (x, y, 1) ~ H (col, row, 1); empty: use m_per_px',
+            kind=FLOAT_LIST)
+        step = declare_parameter(self, 'step_px', 2.0, 'point spacing along the path [px]',
+                                 check=lambda v: None if 0.1 <= v <= 100.0 else 'must be between 0.1 and 100')
+        self.object_index = declare_parameter(self, 'object_index', 0, 'object to publish (0: the longest)',
+                                              check=non_negative)
+        best_effort = declare_parameter(self, 'best_effort_input', False,
+                                        'subscribe with the sensor-data QoS (default: RELIABLE)')
         self.homography = None
         if homography:
             if len(homography) != 9:
@@ -196,22 +188,7 @@ class PatternPerception(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PatternPerception()
-        rclpy.spin(node)
-    except ValueError as exc:
-        print(f'pattern_perception: error: {exc}')
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(PatternPerception, args=args)
 
 
 if __name__ == '__main__':
