@@ -84,3 +84,16 @@ def test_player_with_corrupt_bag_prints_one_error_line(tmp_path):
     assert player.wait(timeout=30) == 1
     err = [line for line in player.stderr.read().splitlines() if line.strip()]
     assert len(err) == 1 and 'error' in err[0], err
+
+
+@pytest.mark.parametrize('stop_signal', [signal.SIGINT, signal.SIGTERM])
+def test_player_stopped_mid_replay_exits_cleanly(tmp_path, stop_signal):
+    make_bag(tmp_path / 'in', seconds=20.0)
+    player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=0.0')
+    time.sleep(2.0)
+    assert player.poll() is None                 # still replaying
+    player.send_signal(stop_signal)
+    assert player.wait(timeout=20) == 0
+    err = player.stderr.read()
+    assert 'Traceback' not in err and 'RCLError' not in err and 'context is invalid' not in err, err
+    assert 'stopped after' in err
