@@ -33,12 +33,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'ros_ws' / 'src' / 'flex_ident'))
 sys.path.insert(0, str(ROOT / 'ros_ws' / 'src' / 'robot_bridge'))
 
+from results_dir import add_results_argument, results_path  # noqa: E402
 from flex_ident.identification.identify import IdentificationSettings, identify  # noqa: E402
 from robot_bridge.bagio.contract import read_joint_recording, write_joint_recording  # noqa: E402
 from robot_bridge.sim.motion import SumOfSinesMotion  # noqa: E402
 from robot_bridge.sim.mujoco_loop import MeasurementNoise, simulate_loop_experiment  # noqa: E402
 
-RESULTS = ROOT / 'benchmarks' / 'results' / 'flex_ident_accuracy.md'
 PLOTS = ('cost_vs_iteration.png', 'end_effector_path.png', 'residual_over_time.png')
 DEFAULT_AMPLITUDES = np.asarray(SumOfSinesMotion().amplitudes_rad)
 
@@ -117,6 +117,7 @@ def row(label, storage, truth, rep, wall, out):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='only the first held-out case of each size')
+    add_results_argument(parser)
     args = parser.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix='flex_ident_accuracy_'))
     header = ['| recording | storage | true k_theta / k_phi | k_theta (std) | k_phi (std) | error [%] | '
@@ -208,8 +209,9 @@ def main(argv=None):
                      f'{rep["cost"]["final"]:.3e} | {rep["converged"]} ({rep["convergence_message"]}) |')
         print(lines[-1], flush=True)
     lines += ['', f'Outputs (reports, plots) of this run: `{work}`.']
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text('\n'.join(lines) + '\n')
+    results = results_path(args, 'flex_ident_accuracy.md')
+    results.write_text('\n'.join(lines) + '\n')
+    print(f'results: {results}')
     (work / 'summary.json').write_text(json.dumps({'all_within_5_percent': bool(all_ok)}))
     print('\n'.join(lines))
     return 0 if all_ok else 1

@@ -28,6 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'ros_ws' / 'src' / 'flex_ident'))
 sys.path.insert(0, str(ROOT / 'ros_ws' / 'src' / 'robot_bridge'))
 
+from results_dir import add_results_argument, results_path  # noqa: E402
 from flex_ident.identification.cost import TrackingCost  # noqa: E402
 from flex_ident.identification.identify import IdentificationSettings, identify, prepare  # noqa: E402
 from flex_ident.mechanics.linearization import adjoint_gradient_along, forward_sensitivities_along  # noqa: E402
@@ -36,7 +37,6 @@ from flex_ident.mechanics.variational_integrator import rest_momentum, simulate 
 from flex_ident.identification.adjoint import (cost_state_gradient, initial_state_sensitivity,  # noqa: E402
                                                residual_jacobian)
 
-RESULTS = ROOT / 'benchmarks' / 'results' / 'flex_ident_speed.md'
 
 
 def median_time(fn, repeats):
@@ -121,6 +121,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--repeats', type=int, default=3)
     parser.add_argument('--no-cold', action='store_true', help='skip the cold-compile measurement')
+    add_results_argument(parser)
     args = parser.parse_args(argv)
     load_before = os.getloadavg()
     lines = ['# flex_ident speed', '',
@@ -164,8 +165,9 @@ def main(argv=None):
               '(same cost).',
               '* Whole identification: target 60 s. Memory: target 2 GB.', '',
               f'Load average at the end: {os.getloadavg()[0]:.1f}.']
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text('\n'.join(lines) + '\n')
+    results = results_path(args, 'flex_ident_speed.md')
+    results.write_text('\n'.join(lines) + '\n')
+    print(f'results: {results}')
     print('\n'.join(lines))
 
 

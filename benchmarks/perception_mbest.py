@@ -30,6 +30,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from results_dir import add_results_argument, results_path
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.evaluation import arc_length_error, centreline_rms, instance_dice, render_instances
 from rod_deploy.perception.pipeline import PerceivedObject, perceive
@@ -237,9 +238,11 @@ def main():
     parser.add_argument('--repeats', type=int, default=20)
     parser.add_argument('--scenes', type=int, default=30, help='development scenes (seed 7)')
     parser.add_argument('--heldout-scenes', type=int, default=60, help='held-out scenes (seed 4242)')
-    parser.add_argument('--out', default=str(ROOT / 'benchmarks' / 'results' / 'perception_mbest.md'))
+    parser.add_argument('--out', default=None, help='results file (default: see --commit-results)')
+    add_results_argument(parser)
     parser.add_argument('--json', help='also write the raw numbers as JSON')
     args = parser.parse_args()
+    args.out = args.out or str(results_path(args, 'perception_mbest.md'))
     data = Path(args.data)
     mbest = bench_mbest(data, args.repeats) if (data / 'mBEST').is_dir() else []
     drawn = bench_drawn(Path(args.shared))

@@ -13,6 +13,7 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from results_dir import add_results_argument, results_path
 from rod_deploy.planning.optimal_grasp import (RELEASED_CONNECTIVE_OFFSET, grasp_sequence, optimal_grasp,
                                                optimal_grasp_der)
 
@@ -24,7 +25,7 @@ def _fmt(v, n=4):
     return '(' + ', '.join(f'{x:.{n}f}' for x in v) + ')'
 
 
-def released_run(md):
+def released_run(md, out):
     path = os.path.join(REF, 'numeric_solver_runs', 'ls13.68_ks2087_kappa0to0.2_simDER.txt')
     if not os.path.exists(path):
         md += ['Released numeric-solver run: reference not present, skipped.', '']
@@ -63,7 +64,7 @@ def released_run(md):
         md.append(f'| {k:.2f} | {_fmt(ref)} | {_fmt(prev.position)} | {_fmt(prev_r.position)} | '
                   f'{_fmt(der.position) if der is not None else "-"} | {" / ".join(errs)} | '
                   f'{np.max(np.abs(prev_r.rotvec - rv)):.4f} |')
-    _plot(d[:, 6], curves, md)
+    _plot(d[:, 6], curves, md, out)
     md += ['', f'Worst relative errors (x, z; y): continuum {100 * worst[0, 0]:.2f} %; {100 * worst[0, 1]:.2f} %, '
                f'released convention {100 * worst[1, 0]:.3f} %; {100 * worst[1, 1]:.2f} %, '
                f'DER-232 {100 * worst[2, 0]:.4f} %; {100 * worst[2, 1]:.3f} %.', '']
@@ -97,7 +98,7 @@ def network_outputs(md, quick):
     md.append('')
 
 
-def _plot(kappa, curves, md):
+def _plot(kappa, curves, md, out):
     try:
         import matplotlib
         matplotlib.use('Agg')
@@ -117,7 +118,7 @@ def _plot(kappa, curves, md):
     axes[0].legend(fontsize=8)
     fig.suptitle('Optimal grasp at (ls_bar, ks_bar) = (13.68, 2087): ours vs the released numeric solver')
     fig.tight_layout()
-    path = os.path.join(ROOT, 'benchmarks', 'results', 'rod_grasp_accuracy.png')
+    path = os.path.join(os.path.dirname(os.path.abspath(out)), 'rod_grasp_accuracy.png')
     fig.savefig(path, dpi=110)
     plt.close(fig)
     md += ['', '![x, y, z vs kappa_bar](rod_grasp_accuracy.png)']
@@ -159,12 +160,15 @@ def held_out(md, quick):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument('--out', default=os.path.join(ROOT, 'benchmarks', 'results', 'rod_grasp_accuracy.md'))
+    ap.add_argument('--out', default=None, help='results file (default: see --commit-results)')
+    add_results_argument(ap)
     ap.add_argument('--quick', action='store_true')
     a = ap.parse_args()
+    a.out = a.out or str(results_path(a, 'rod_grasp_accuracy.md'))
     md = ['# Optimal-grasp accuracy', '', 'Produced by `python benchmarks/rod_grasp_accuracy.py`. Positions in '
           'L_gb in the published local frame; kappa_bar in the released sign convention.', '']
-    released_run(md)
+    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
+    released_run(md, a.out)
     limits(md)
     network_outputs(md, a.quick)
     held_out(md, a.quick)

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from results_dir import add_results_argument, results_path
 from rod_deploy.planning.optimal_grasp import grasp_sequence, optimal_grasp
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -47,8 +48,10 @@ def timed(fn):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('--repeat', type=int, default=5)
-    ap.add_argument('--out', default=os.path.join(ROOT, 'benchmarks', 'results', 'rod_grasp_speed.md'))
+    ap.add_argument('--out', default=None, help='results file (default: see --commit-results)')
+    add_results_argument(ap)
     a = ap.parse_args()
+    a.out = a.out or str(results_path(a, 'rod_grasp_speed.md'))
     optimal_grasp(5.0, 0.1, 1000.0)                      # warm imports and caches once
 
     rows = []

@@ -83,7 +83,8 @@ def main():
     step(f'1. replay {bag.relative_to(ROOT)} (x{args.rate}) through bag_player -> joint_state_logger')
     if record_replay(bag, out / 'recording', args.rate) != 0:
         return 1
-    step('2. what the logger recorded (bag-tools info)')
+    step(f'2. what the logger recorded (bag-tools info; replayed at x{args.rate:g}, so the receive times span '
+         f'1/{args.rate:g} of the header stamps)')
     bag_tools.main(['info', str(out / 'recording')])
     original = [m.data for m in iter_raw_messages(bag, topics=['/joint_states'])]
     recorded = [m.data for m in iter_raw_messages(out / 'recording', topics=['/joint_states'])]

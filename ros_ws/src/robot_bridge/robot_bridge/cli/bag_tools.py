@@ -19,22 +19,33 @@ from robot_bridge.bagio.reindex import reindex_bag
 
 
 def bag_info(bag: str) -> dict:
-    """Per topic: type, count, duration (s), mean rate (Hz); joint names of /joint_states."""
+    """Per topic: type, count, duration (s), mean rate (Hz) of the bag's receive times; for /joint_states also
+    the span and rate of the header stamps (what identification uses: a bag recorded from a replay at another
+    speed, or with a lagging receiver, differs there); joint names of /joint_states."""
     topics: dict[str, dict] = {}
     stamps: dict[str, list] = {}
+    header_ns: list[int] = []
     joint_names: list[str] = []
     for m in iter_raw_messages(bag):
         t = topics.setdefault(m.topic, {'type': m.msgtype, 'count': 0})
         t['count'] += 1
         stamps.setdefault(m.topic, []).append(m.timestamp_ns)
-        if m.topic == JOINT_STATES and m.msgtype == JOINT_STATE_TYPE and not joint_names:
-            joint_names = list(deserialize(m.data, m.msgtype).name)
+        if m.topic == JOINT_STATES and m.msgtype == JOINT_STATE_TYPE:
+            msg = deserialize(m.data, m.msgtype)
+            header_ns.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+            if not joint_names:
+                joint_names = list(msg.name)
     if not topics:
         raise ValueError(f'bag {bag} holds no messages')
     for topic, info in topics.items():
         s = np.asarray(stamps[topic])
         info['duration_s'] = float((s.max() - s.min()) * 1e-9)
         info['rate_hz'] = float((len(s) - 1) / info['duration_s']) if info['duration_s'] > 0 else 0.0
+    if header_ns:
+        h = np.asarray(header_ns)
+        span = float((h.max() - h.min()) * 1e-9)
+        topics[JOINT_STATES]['header_duration_s'] = span
+        topics[JOINT_STATES]['header_rate_hz'] = float((len(h) - 1) / span) if span > 0 else 0.0
     all_stamps = np.concatenate([np.asarray(v) for v in stamps.values()])
     return {'bag': str(bag), 'duration_s': float((all_stamps.max() - all_stamps.min()) * 1e-9),
             'messages': int(len(all_stamps)), 'topics': topics, 'joint_names': joint_names}
@@ -48,6 +59,8 @@ def _info(args):
     print(f"bag: {info['bag']}\nduration: {info['duration_s']:.3f} s\nmessages: {info['messages']}")
     for topic, t in sorted(info['topics'].items()):
         print(f"  {topic:30s} {t['type']:35s} {t['count']:8d} msgs {t['rate_hz']:9.2f} Hz")
+        if 'header_duration_s' in t:
+            print(f"  {'':30s} header stamps: {t['header_duration_s']:.3f} s, {t['header_rate_hz']:.2f} Hz")
     if info['joint_names']:
         print(f"joint names: {', '.join(info['joint_names'])}")
     return 0
