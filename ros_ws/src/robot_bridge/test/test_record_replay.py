@@ -87,3 +87,88 @@ def test_logger_matches_a_best_effort_publisher(ros_context, wait_for, tmp_path)
     sub = logger._topic_subscriptions['/joint_states']
     assert sub.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
     assert wait_for(lambda: logger.counts['/joint_states'] == 100, timeout_s=5), logger.counts
+
+
+def test_player_topics_and_remap(ros_context, wait_for, tmp_path):
+    bag = make_bag(tmp_path / 'in', 'mcap', n=120)
+    logger = ros_context.add(JointStateLogger(context=ros_context.context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'out')), Parameter('topics', value=['/robot/js', '/unrelated'])]))
+    player = ros_context.add(BagPlayer(context=ros_context.context, parameter_overrides=[
+        Parameter('bag', value=bag), Parameter('rate', value=4.0), Parameter('wait_for_subscribers', value=10.0),
+        Parameter('topics', value=['/joint_states']), Parameter('remap', value=['/joint_states:=/robot/js'])]))
+    assert wait_for(lambda: player.done.is_set(), timeout_s=30) and player.exit_code == 0
+    assert wait_for(lambda: logger.counts['/robot/js'] == 120, timeout_s=5), logger.counts
+    logger.close()
+    recorded = list(iter_raw_messages(tmp_path / 'out'))
+    assert {m.topic for m in recorded} == {'/robot/js'}             # /unrelated was not replayed
+    assert [m.data for m in recorded] == [m.data for m in iter_raw_messages(bag, topics=['/joint_states'])]
+
+
+def test_player_start_offset_skips_the_beginning(ros_context, wait_for, tmp_path):
+    bag = make_bag(tmp_path / 'in', 'mcap', n=300, extra_topic=False)      # 0.6 s at 500 Hz
+    original = list(iter_raw_messages(bag))
+    expected = [m.data for m in original if m.timestamp_ns >= original[0].timestamp_ns + 300_000_000]
+    assert 100 < len(expected) < 200
+    logger = ros_context.add(JointStateLogger(context=ros_context.context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'out')), Parameter('topics', value=['/joint_states'])]))
+    player = ros_context.add(BagPlayer(context=ros_context.context, parameter_overrides=[
+        Parameter('bag', value=bag), Parameter('start_offset', value=0.3), Parameter('wait_for_subscribers', value=10.0)]))
+    assert wait_for(lambda: player.done.is_set(), timeout_s=30) and player.exit_code == 0
+    assert wait_for(lambda: logger.counts['/joint_states'] == len(expected), timeout_s=5), logger.counts
+    logger.close()
+    assert [m.data for m in iter_raw_messages(tmp_path / 'out')] == expected
+
+
+def test_player_loop_replays_again_until_stopped(ros_context, wait_for, tmp_path):
+    bag = make_bag(tmp_path / 'in', 'mcap', n=50, extra_topic=False)
+    logger = ros_context.add(JointStateLogger(context=ros_context.context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'out')), Parameter('topics', value=['/joint_states'])]))
+    player = ros_context.add(BagPlayer(context=ros_context.context, parameter_overrides=[
+        Parameter('bag', value=bag), Parameter('loop', value=True), Parameter('rate', value=5.0),
+        Parameter('wait_for_subscribers', value=10.0)]))
+    assert wait_for(lambda: logger.counts['/joint_states'] >= 120, timeout_s=30), logger.counts
+    assert not player.done.is_set()
+    player.close()
+    assert player.done.is_set()
+    logger.close()
+    once = [m.data for m in iter_raw_messages(bag)]
+    recorded = [m.data for m in iter_raw_messages(tmp_path / 'out')]
+    assert recorded[:100] == once + once                              # the same bag, twice, in order
+
+
+def test_wrench_and_mixed_reliability_publishers_are_recorded(ros_context, wait_for, tmp_path):
+    """/wrench is recorded by default; two /joint_states publishers, one RELIABLE and one BEST_EFFORT: the logger
+    subscribes BEST_EFFORT (as rosbag2 does) so that it hears both."""
+    import rclpy
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    logger = ros_context.add(JointStateLogger(context=ros_context.context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'out'))]))
+    node = ros_context.add(rclpy.create_node('publishers', context=ros_context.context))
+    reliable = node.create_publisher(JointState, '/joint_states',
+                                     QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    best_effort = node.create_publisher(JointState, '/joint_states',
+                                        QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+    wrench = node.create_publisher(WrenchStamped, '/wrench', QoSProfile(depth=100))
+    assert wait_for(lambda: set(logger.subscribed_topics()) == {'/joint_states', '/wrench'}, timeout_s=10)
+    sub = logger._topic_subscriptions['/joint_states']
+    assert sub.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert wait_for(lambda: reliable.get_subscription_count() and best_effort.get_subscription_count()
+                    and wrench.get_subscription_count(), timeout_s=10)
+    import time
+    for i in range(20):
+        reliable.publish(JointState(name=['a'], position=[float(i)]))
+        best_effort.publish(JointState(name=['b'], position=[float(i)]))
+        w = WrenchStamped()
+        w.wrench.force.z = float(i)
+        wrench.publish(w)
+        time.sleep(0.005)
+    assert wait_for(lambda: logger.counts['/joint_states'] == 40 and logger.counts['/wrench'] == 20, timeout_s=5), \
+        logger.counts
+    logger.close()
+    from robot_bridge.bagio.raw import deserialize
+    names = [deserialize(m.data, m.msgtype).name[0] for m in iter_raw_messages(tmp_path / 'out', ['/joint_states'])]
+    assert names.count('a') == 20 and names.count('b') == 20
+    forces = [deserialize(m.data, m.msgtype).wrench.force.z for m in iter_raw_messages(tmp_path / 'out', ['/wrench'])]
+    assert forces == [float(i) for i in range(20)]
