@@ -90,12 +90,44 @@ def test_info_json(tmp_path, capsys):
     ('kuka_lwr4', 'kuka_lwr4_flobaroid/kuka_lwr4_measurements_1.csv'),
     ('schunk_liu2018', 'schunk_6dof_liu_althoff2018/measurement_1/trajectory.csv'),
 ])
-def test_presets_on_the_shared_logs(tmp_path, preset, rel):
+def test_presets_on_the_shared_logs(tmp_path, capsys, preset, rel):
+    """Each preset against the file read independently with numpy: joint names, units (rad, rad/s, N m, seconds
+    from 0), Kinova's 1 kHz sample index and unwrapped positions, Schunk's three files with the extra state row."""
     if not (SHARED / rel).exists():
         pytest.skip('shared robot_torque data not present')
     assert main(['import-csv', str(SHARED / rel), '--out', str(tmp_path / 'bag'), '--preset', preset]) == 0
+    printed = capsys.readouterr().out
     rec = read_joint_recording(tmp_path / 'bag', require_effort=True)
-    assert len(rec.t_s) > 900 and np.all(np.isfinite(rec.position))
+    assert rec.names == PRESETS[preset]['joints']
+    if preset == 'schunk_liu2018':
+        traj = np.loadtxt(SHARED / rel, delimiter=',')
+        tau = np.loadtxt(SHARED / rel.replace('trajectory', 'input'), delimiter=',')
+        t = np.loadtxt(SHARED / rel.replace('trajectory', 'time'), delimiter=',')
+        assert len(traj) == len(tau) + 1 == len(rec.t_s) + 1         # the last state row has no torque: dropped
+        assert 'dropped' in printed or 'drop' in printed
+        pos, vel, t = traj[:-1, :6], traj[:-1, 6:], t[:-1]
+    else:
+        data = np.genfromtxt(SHARED / rel, delimiter=',', names=True)
+        cols = data.dtype.names
+        if preset == 'kinova_gen3':
+            t = data['Time'] / 1000.0
+            pos = np.stack([data[f'Position{i}'] for i in range(1, 8)], 1)
+            vel = np.stack([data[f'Velocity{i}'] for i in range(1, 8)], 1)
+            tau = np.stack([data[f'Torque{i}'] for i in range(1, 8)], 1)
+        else:
+            t = data['t_s']
+            pos = np.stack([data[c] for c in cols if c.startswith('q')], 1)
+            vel = np.stack([data[c] for c in cols if c.startswith('dq')], 1)
+            tau = np.stack([data[c] for c in cols if c.startswith('tau')], 1)
+    np.testing.assert_allclose(rec.t_s, t - t[0], atol=2e-9)
+    if preset == 'kinova_gen3':
+        assert np.all(np.abs(np.diff(rec.position, axis=0)) < 1.0)      # unwrapped: no 2 pi jumps left
+        np.testing.assert_allclose(np.mod(rec.position - pos + np.pi, 2 * np.pi) - np.pi, 0, atol=1e-9)
+        assert 'unwrapped' in printed
+    else:
+        np.testing.assert_allclose(rec.position, pos, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rec.velocity, vel, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rec.effort, tau, rtol=0, atol=1e-12)
 
 
 def test_window_covering_the_whole_recording_is_accepted_but_a_longer_one_is_not(tmp_path):
