@@ -82,7 +82,23 @@ def test_several_strokes_and_the_overlay():
     res = perceive(img)
     assert len(res.objects) == 2
     ov = draw_overlay(img, res.objects, res.crossings, metres_per_px=0.001)
-    assert ov.shape == img.shape and ov.dtype == np.uint8 and not np.array_equal(ov, img)
+    assert ov.shape == img.shape and ov.dtype == np.uint8
+    from rod_deploy.perception.overlay import PALETTE, scale_bar_length_m
+    for k, o in enumerate(res.objects):          # each path is drawn in its own colour where it was perceived
+        rows, cols = np.round(o.points[5:-5:7]).astype(int).T
+        colours = ov[rows, cols].astype(int)
+        on_path = np.all(np.abs(colours - PALETTE[k]) <= 60, axis=1)
+        assert on_path.mean() > 0.8, (k, on_path.mean())
+    # away from every path and the legend, the image is only dimmed
+    far = (slice(img.shape[0] // 2 - 10, img.shape[0] // 2 + 10), slice(img.shape[1] - 30, img.shape[1] - 5))
+    np.testing.assert_allclose(ov[far], (img[far].astype(np.float32) * 0.55).astype(np.uint8), atol=1)
+    # a metric scale bar (bottom left) only with a mapping: 100 mm for this 0.001 m/px, 500 px wide image
+    assert scale_bar_length_m(0.001, img.shape[1]) == pytest.approx(0.1)
+    plain = draw_overlay(img, res.objects, res.crossings)
+    h = img.shape[0]
+    unit = max(1, int(round(min(img.shape[:2]) / 450)))
+    bar = (slice(h - 14 * unit, h - 12 * unit), slice(12 * unit, 12 * unit + 90))
+    assert np.all(ov[bar] == 255) and not np.all(plain[bar] == 255)
 
 
 def test_no_stroke_and_huge_images():

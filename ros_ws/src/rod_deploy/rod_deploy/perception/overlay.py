@@ -3,7 +3,7 @@
 Each object gets its own colour, a ring at its start with its id, arrows along its direction of travel
 and a square at its end. At a crossing with a decided order the upper object is drawn again over the
 lower one and a white ring marks the crossing; an undecided crossing (same colours) gets a '?'. A legend
-lists every object's length and width.
+lists every object's length and width and explains the marks; with a metric mapping a scale bar is drawn.
 """
 from __future__ import annotations
 
@@ -91,7 +91,39 @@ def draw_overlay(image_bgr: np.ndarray, objects: list, crossings: list, metres_p
                     cv2.LINE_AA)
         y += 16 * unit
     n_dec = sum(1 for c in crossings if c.over is not None)
-    cv2.putText(out, f'crossings: {len(crossings)}, over/under from colour: {n_dec} (ring), undecided: '
-                f'{len(crossings) - n_dec} (?)', (8 * unit, y), cv2.FONT_HERSHEY_SIMPLEX, font_scale,
-                (255, 255, 255), unit, cv2.LINE_AA)
+    lines = ['ring + id: start of a path, square: its end, arrows: its direction',
+             f'crossings: {len(crossings)}; white ring: over/under decided from colour ({n_dec}),',
+             f'  upper path drawn on top; ?: order undecided, e.g. same colour ({len(crossings) - n_dec})']
+    for text in lines:
+        cv2.putText(out, text, (8 * unit, y), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (255, 255, 255), unit,
+                    cv2.LINE_AA)
+        y += 16 * unit
+    if metres_per_px:
+        draw_scale_bar(out, metres_per_px, unit, font_scale)
     return out
+
+
+def scale_bar_length_m(metres_per_px: float, image_width_px: int) -> float:
+    """A round length (1, 2 or 5 x 10^k m) close to a fifth of the image width."""
+    target = image_width_px * metres_per_px / 5.0
+    exponent = np.floor(np.log10(target))
+    candidates = [m * 10.0 ** exponent for m in (1.0, 2.0, 5.0, 10.0)]
+    return float(min(candidates, key=lambda c: abs(np.log(c / target))))
+
+
+def draw_scale_bar(out: np.ndarray, metres_per_px: float, unit: int = 1, font_scale: float = 0.45):
+    """A white bar with its length in metres (cm or mm when shorter) at the bottom left of ``out`` (in place)."""
+    h, w = out.shape[:2]
+    length_m = scale_bar_length_m(metres_per_px, w)
+    length_px = int(round(length_m / metres_per_px))
+    x0, y0 = 10 * unit, h - 12 * unit
+    cv2.rectangle(out, (x0 - 4 * unit, y0 - 22 * unit), (x0 + length_px + 4 * unit, y0 + 6 * unit), (0, 0, 0), -1)
+    cv2.rectangle(out, (x0, y0 - 3 * unit), (x0 + length_px, y0), (255, 255, 255), -1)
+    if length_m >= 1.0:
+        label = f'{length_m:g} m'
+    elif length_m >= 0.01:
+        label = f'{100 * length_m:g} cm'
+    else:
+        label = f'{1000 * length_m:g} mm'
+    cv2.putText(out, label, (x0, y0 - 8 * unit), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (255, 255, 255), unit,
+                cv2.LINE_AA)
