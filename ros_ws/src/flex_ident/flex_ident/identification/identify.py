@@ -163,7 +163,7 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     if settings.plots:
         from .plots import write_plots
         out.mkdir(parents=True, exist_ok=True)
-        plots = write_plots(out, problem, result, initial, evaluations)
+        plots = write_plots(out, problem, result, initial, evaluations, stages)
     report['plots'] = [p.name for p in plots]
     report['wall_time_s'] = time.monotonic() - t_start
     write_report(out, report)
@@ -218,7 +218,8 @@ def warm_start(problem, p0, method, windows, progress: Progress | None = None):
         params = result.params
         stages.append({'window_s': window, 'iterations': int(result.iterations), 'simulations': int(result.evaluations),
                        'parameters': dict(zip(problem.free, (float(v) for v in params))),
-                       'cost': float(result.evaluation.cost), 'message': result.message})
+                       'cost': float(result.evaluation.cost), 'message': result.message,
+                       'cost_history': [float(h['cost']) for h in result.history]})
         problem.substeps = max(problem.substeps, short.substeps)
     return params, stages
 
