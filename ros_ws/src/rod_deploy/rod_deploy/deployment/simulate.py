@@ -1,0 +1,223 @@
+"""A whole deployment in our discrete elastic rod simulator (``rod_deploy.physics.der_simulator``).
+
+Set-up (CONTRACTS.md section 4): the rod hangs straight and at rest, its free end (node 0) on the table at the start
+point and the held end (the last node) at the trajectory's hanging pose. The gripper holds the last edge: the last
+two nodes follow the trajectory (positions interpolated linearly in time, orientation by slerp; the last edge along
+d3 = -z_gripper) and so does the last edge's material frame (d1 = x_gripper), i.e. position, direction and twist.
+The free end is held in place during the lead-in - the straight line on which the gripper leaves the hanging pose
+(the planner's lead-in, or the straight line to the first pose of a trajectory that starts elsewhere) - and released
+after it. The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+small viscous damping (quasi-static deployment). Self-contact is ignored.
+
+The trajectory is replayed ``time_scale`` times faster than its stamps (default: so that the gripper moves at most
+5 cm/s; still quasi-static for these rods: their slowest pendulum period is about 2 pi sqrt(L / g) ~ 1.9 s for a
+0.9 m rod, and the deployment takes far longer), with implicit-Euler steps of ``dt_s``. At the end the deployed
+shape is read off the table: the nodes in contact, in rod order from the free end, up to where the rod lifts off.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from rod_deploy.physics.der_simulator import DiscreteElasticRod, RodParameters
+from rod_deploy.physics.reference_frames import parallel_transport, signed_angle
+from rod_deploy.planning.rod_description import RodDescription
+
+G = 9.81
+DEFAULT_DENSITY = 1180.0          # kg/m^3 (vinyl polysiloxane, the paper's rods), when the rod file gives none
+FRICTION_LEVELS = {'low': 0.2, 'medium': 0.5, 'high': 1.0}
+
+
+class DeploymentError(ValueError):
+    """A trajectory that cannot be simulated (clear message, no partial result)."""
+
+
+@dataclass
+class SimulationSettings:
+    edge_length_m: float = 0.005     # rod discretisation
+    dt_s: float = 0.02               # implicit Euler step (simulated time)
+    max_gripper_speed_m_s: float = 0.05   # replay speed cap (quasi-static)
+    damping_per_s: float = 2.0       # viscous damping gamma [1/s]: force -gamma m v on every node
+    settle_s: float = 1.0            # simulated time at the end with the gripper still
+    friction: float | None = None    # Coulomb coefficient; None: the rod file's, else 'medium'
+    start_xy: tuple | None = None    # free end's start point; None: below the trajectory's first (hanging) pose
+    contact_tolerance_m: float = 0.0   # a node lies on the table if z <= radius + this (contact force on)
+
+
+@dataclass
+class DeploymentResult:
+    deployed_xy: np.ndarray          # (k, 2) nodes on the table from the free end [m]
+    nodes: np.ndarray                # (N+1, 3) final configuration [m]
+    gripper_path: np.ndarray         # (m, 3) the held node's prescribed positions [m]
+    start_xy: np.ndarray
+    lead_in_rows: int
+    steps: int
+    newton_iterations: int
+    wall_time_s: float
+    friction: float
+    settings: SimulationSettings = field(repr=False, default=None)
+
+
+def is_hanging_pose(position, quaternion, rod: RodDescription, tol_m=0.01, tol_rad=0.05):
+    z_g = Rotation.from_quat(quaternion).as_matrix()[:, 2]
+    return (abs(position[2] - (rod.length_m + rod.radius_m)) < tol_m and
+            math.acos(min(1.0, max(-1.0, -z_g[2]))) < tol_rad)
+
+
+def lead_in_rows(position, tol_m=1e-4):
+    """Rows on the straight line leaving the first pose: the lead-in (at least the first row)."""
+    if len(position) < 2:
+        return 1
+    d = position[1] - position[0]
+    n = np.linalg.norm(d)
+    if n < 1e-12:
+        return 1
+    d /= n
+    last = 1
+    for k in range(2, len(position)):
+        v = position[k] - position[0]
+        along = float(np.dot(v, d))
+        if along < np.dot(position[last] - position[0], d) - 1e-12 or np.linalg.norm(v - along * d) > tol_m:
+            break
+        last = k
+    return last + 1
+
+
+def material_parameters(rod: RodDescription, friction: float, damping_per_s: float):
+    """SI rod parameters with the rod's L_gb: E from L_gb = (E h^2 / (8 rho g))^(1/3) and the density."""
+    rho = rod.density_kg_m3 or DEFAULT_DENSITY
+    h = rod.radius_m
+    E = rod.youngs_modulus_pa or 8.0 * rho * G * rod.gravito_bending_length_m ** 3 / h ** 2
+    if rod.youngs_modulus_pa and rod.density_kg_m3:      # keep the rod's own pair; its L_gb follows from them
+        E = rod.youngs_modulus_pa
+    A = math.pi * h ** 2
+    EI = E * math.pi * h ** 4 / 4.0
+    nu = 0.5
+    return RodParameters(EI=EI, EA=E * A, GJ=EI / (1.0 + nu), rho_A=rho * A, radius=h, gravity=(0.0, 0.0, -G),
+                         damping=rho * A * damping_per_s, table=True, friction=friction,
+                         friction_velocity=1e-4)
+
+
+def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,
+                        progress=None) -> DeploymentResult:
+    """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion)."""
+    settings = settings or SimulationSettings()
+    t = np.asarray(t, float)
+    position = np.asarray(position, float)
+    quaternion = np.asarray(quaternion, float)
+    friction = settings.friction if settings.friction is not None else (
+        rod.friction if rod.friction is not None else FRICTION_LEVELS['medium'])
+    t_wall = time.perf_counter()
+    L, h = rod.length_m, rod.radius_m
+    # -- where the rod starts: hanging from the first pose, or below the hanging pose above start_xy
+    if settings.start_xy is not None:
+        start = np.asarray(settings.start_xy, float)
+        hang_p = np.array([start[0], start[1], h + L])
+        z_first = Rotation.from_quat(quaternion[0]).as_matrix()
+        x0 = z_first[:, 0].copy()
+        x0[2] = 0.0
+        x0 = x0 / np.linalg.norm(x0) if np.linalg.norm(x0) > 1e-6 else np.array([1.0, 0.0, 0.0])
+        hang_R = np.column_stack([x0, np.cross([0.0, 0.0, -1.0], x0), [0.0, 0.0, -1.0]])
+        if not is_hanging_pose(position[0], quaternion[0], rod) or np.linalg.norm(position[0] - hang_p) > 1e-3:
+            position = np.vstack([hang_p, position])
+            quaternion = np.vstack([Rotation.from_matrix(hang_R).as_quat(), quaternion])
+            gap = np.linalg.norm(position[1] - position[0])
+            t = np.concatenate([[t[0] - max(gap / 0.01, 1.0)], t])
+    else:
+        if not is_hanging_pose(position[0], quaternion[0], rod):
+            z_g = Rotation.from_quat(quaternion[0]).as_matrix()[:, 2]
+            raise DeploymentError(
+                f'the trajectory does not start at a hanging pose (gripper {rod.length_m + h:.4f} m above the table, '
+                f'+z_gripper down): first pose at z = {position[0, 2]:.4f} m with +z_gripper = '
+                f'{np.round(z_g, 3).tolist()}; give the pattern\'s first point (--start X Y or --pattern) so that '
+                f'the simulation can lead in from the hanging pose above it')
+        start = position[0, :2].copy()
+    n_lead = lead_in_rows(position)
+    t = t - t[0]
+    # -- replay speed: the gripper never faster than max_gripper_speed_m_s
+    seg = np.linalg.norm(np.diff(position, axis=0), axis=1)
+    dts = np.diff(t)
+    peak = float(np.max(seg / np.maximum(dts, 1e-12))) if len(seg) else 0.0
+    ts = t * (peak / settings.max_gripper_speed_m_s) if peak > 0 else t    # replayed at the speed cap
+    rot = Rotation.from_quat(quaternion)
+    slerp = Slerp(ts, rot)
+    t_release = ts[n_lead - 1]
+
+    def gripper(time_s):
+        tt = min(max(time_s, ts[0]), ts[-1])
+        p = np.array([np.interp(tt, ts, position[:, k]) for k in range(3)])
+        return p, slerp([tt]).as_matrix()[0]
+
+    # -- the rod, hanging straight from the first pose
+    n_edges = max(int(round(L / settings.edge_length_m)), 4)
+    s = np.linspace(0.0, L, n_edges + 1)
+    nodes = np.column_stack([np.full_like(s, start[0]), np.full_like(s, start[1]), h + s])
+    p0, R0 = gripper(0.0)
+    nodes[-1] = p0                           # the hanging pose itself (checked above)
+    params = material_parameters(rod, friction, settings.damping_per_s)
+    d1_top = R0[:, 0]
+    rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)
+    dl = L / n_edges
+    last = n_edges - 1
+    top_dofs = np.concatenate([rod_model.node_dof(n_edges), rod_model.node_dof(n_edges - 1)])
+    theta_dof = rod_model.theta_dof(last)
+    state = {'theta': 0.0}
+    # initial twist of the last edge so that its material d1 = x_gripper
+    t_last = rod_model.state.tangents[last]
+    state['theta'] = float(signed_angle(rod_model.state.d1[last], R0[:, 0], t_last))
+    rod_model.set_positions(theta_dof, state['theta'])
+
+    def top_positions(time_s):
+        p, R = gripper(time_s)
+        return np.concatenate([p, p + dl * R[:, 2]])           # node N, node N-1 = N - dl d3 = N + dl z_g
+
+    def top_theta(time_s):
+        p, R = gripper(time_s)
+        d3 = -R[:, 2]
+        st = rod_model.state
+        d1_ref = parallel_transport(st.d1[last][None], st.tangents[last][None], d3[None])[0]
+        d1_ref -= d3 * np.dot(d1_ref, d3)
+        d1_ref /= np.linalg.norm(d1_ref)
+        target = float(signed_angle(d1_ref, R[:, 0], d3))
+        prev = state['theta']
+        target += 2 * np.pi * round((prev - target) / (2 * np.pi))
+        state['theta'] = target
+        return np.array([target])
+
+    rod_model.prescribe(top_dofs, top_positions)
+    rod_model.prescribe(np.array([theta_dof]), top_theta)
+    free_end = rod_model.node_dof(0)
+    hold = {'on': True}
+    rod_model.prescribe(free_end, lambda _t: np.array([start[0], start[1], h]))
+    # settle the hanging rod (it starts straight and at rest: a few steps suffice)
+    rod_model.static_solve(tol=1e-8, max_iter=50)
+    total = ts[-1] + settings.settle_s
+    steps = int(math.ceil(total / settings.dt_s))
+    iterations = 0
+    path = []
+    for k in range(steps):
+        now = (k + 1) * settings.dt_s
+        if hold['on'] and now > t_release:
+            hold['on'] = False
+            del rod_model._prescribed[tuple(free_end.tolist())]
+            rod_model.fixed[free_end] = False
+        try:
+            iterations += rod_model.step(settings.dt_s)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
+            raise DeploymentError(f'the rod simulation failed at t = {now:.3f} s: {e}') from None
+        if not np.all(np.isfinite(rod_model.state.q)):
+            raise DeploymentError(f'the rod simulation diverged at t = {now:.3f} s')
+        path.append(rod_model.nodes[-1].copy())
+        if progress is not None:
+            progress(k + 1, steps)
+    final = rod_model.nodes
+    on_table = final[:, 2] <= h + settings.contact_tolerance_m
+    k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(final)
+    deployed = final[:k_end, :2]
+    return DeploymentResult(deployed_xy=deployed, nodes=final, gripper_path=np.array(path), start_xy=start,
+                            lead_in_rows=n_lead, steps=steps, newton_iterations=iterations,
+                            wall_time_s=time.perf_counter() - t_wall, friction=friction, settings=settings)

@@ -1,0 +1,76 @@
+"""A pattern to deploy along (CONTRACTS.md section 4): a points file (x y [z] per line, metres, table frame) or an
+image of a drawn stroke / a photographed rod with its pixel-to-table mapping (through the perception pipeline)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+IMAGE_SUFFIXES = {'.png', '.jpg', '.jpeg', '.bmp', '.tif', '.tiff'}
+
+
+class PatternError(ValueError):
+    """A pattern the planner cannot use; the message names the problem and the point."""
+
+
+def load_pattern(path, m_per_px=None, origin=None, homography=None, object_index=0) -> np.ndarray:
+    """(n, 2) pattern points [m] in the table frame, validated with :func:`check_pattern`."""
+    path = Path(path)
+    if not path.exists():
+        raise PatternError(f'pattern {path} does not exist')
+    if path.suffix.lower() in IMAGE_SUFFIXES:
+        xy = _pattern_from_image(path, m_per_px, origin, homography, object_index)
+    else:
+        from rod_deploy.perception.path_io import PathFileError, read_pattern_file
+        try:
+            xy = read_pattern_file(path)[:, :2]
+        except (PathFileError, OSError, UnicodeDecodeError) as e:
+            raise PatternError(f'pattern {path}: {e}') from None
+    return check_pattern(xy, str(path))
+
+
+def _pattern_from_image(path, m_per_px, origin, homography, object_index):
+    import cv2
+    from rod_deploy.perception.pipeline import PerceptionError, perceive
+    from rod_deploy.perception.pixel_mapping import MappingError, ScaleOrigin, default_origin, load_homography
+    if m_per_px is None and homography is None:
+        raise PatternError(f'pattern image {path} needs --m-per-px or --homography (the planner works in metres)')
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None or img.size == 0:
+        raise PatternError(f'cannot read image {path}')
+    try:
+        if homography is not None:
+            mapping = load_homography(homography)
+            mapping.check_image(img.shape)
+        else:
+            if not m_per_px > 0:
+                raise PatternError(f'--m-per-px must be > 0, got {m_per_px}')
+            mapping = ScaleOrigin(m_per_px, *(origin if origin is not None else default_origin(img.shape)))
+        result = perceive(img)
+    except (MappingError, PerceptionError) as e:
+        raise PatternError(f'{path}: {e}') from None
+    if not 0 <= object_index < len(result.objects):
+        raise PatternError(f'{path}: object {object_index} requested, the image has objects '
+                           f'0..{len(result.objects) - 1}')
+    pts = result.objects[object_index].points
+    return np.stack(mapping.to_table(pts[:, 0], pts[:, 1]), axis=1)
+
+
+def check_pattern(xy, name='pattern', min_spacing_m=1e-6) -> np.ndarray:
+    """At least 3 finite points, no repeated consecutive points (within ``min_spacing_m``)."""
+    xy = np.asarray(xy, float)
+    if xy.ndim != 2 or xy.shape[1] < 2:
+        raise PatternError(f'{name}: expected (x, y) points')
+    xy = xy[:, :2]
+    if len(xy) < 3:
+        raise PatternError(f'{name}: a pattern needs at least 3 points, got {len(xy)}')
+    bad = np.flatnonzero(~np.all(np.isfinite(xy), axis=1))
+    if bad.size:
+        raise PatternError(f'{name}: point {bad[0]} is not finite ({xy[bad[0]].tolist()})')
+    gaps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    bad = np.flatnonzero(gaps < min_spacing_m)
+    if bad.size:
+        i = int(bad[0])
+        raise PatternError(f'{name}: point {i + 1} ({xy[i + 1, 0]:.6g}, {xy[i + 1, 1]:.6g}) repeats point {i}; '
+                           f'remove repeated points')
+    return xy

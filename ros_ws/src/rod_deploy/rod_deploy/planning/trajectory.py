@@ -1,0 +1,229 @@
+"""Trajectory planning from a pattern (paper Alg. 4): the gripper poses that lay a rod along the pattern.
+
+ProcessPattern: a smoothing spline through the pattern points (``smoothing_m``: the RMS distance the spline may keep
+from them), resampled uniformly by arc length every ``step_m``; tangent T(s) and signed curvature kappa(s) from the
+spline. For each node s (Alg. 4): q_C = P(s), x_hat = T(s), kappa_bar = kappa(s) L_gb, ls_bar = (L - s) / L_gb
+(the rod not yet laid hangs between the connective node and the gripper), the grasp (q_bar_M, R) = F(ls_bar,
+kappa_bar, ks_bar) from the network (``nn``), the numeric solver with curvature continuation (``numeric``) or the
+paper's intuitive baseline (``intuitive``, Fig. 2a: the gripper straight above the contact point at the height of
+the suspended length, moving along the tangent and down by the length laid, i.e. along a 45-degree descent), then
+R_t = (x_hat, z_hat x x_hat, z_hat) and q_M = q_C + R_t q_bar_M L_gb.
+
+Sign of the curvature: kappa(s) > 0 turns left (towards z_hat x T, counter-clockwise seen from above); the grasp
+solvers take the released code's kappa_bar = -kappa L_gb (positive turns right, see ``optimal_grasp``).
+
+Gripper frame (CONTRACTS.md section 4): +z_gripper is the direction in which the rod leaves the gripper, i.e. minus
+the rod's tangent at the gripper, R e_x; x_gripper = R e_z (the rod's material director d1 at the gripper, twist
+free), y_gripper = z x x. A straight hanging rod for a pattern starting along -x has the quaternion (1, 0, 0, 0).
+The trajectory starts at the hanging pose (free end on the table at P(0), the rod straight up from it, the gripper
+turned like the first grasp about the vertical), leads in along a straight line (orientation by slerp) to the first
+grasp, then follows the pattern. Times: the gripper moves at ``speed_m_s`` and turns at most at
+``max_angular_rate_rad_s``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import splev, splprep
+from scipy.spatial.transform import Rotation, Slerp
+
+from .pattern_input import PatternError, check_pattern
+from .rod_description import RodDescription
+
+METHODS = ('nn', 'numeric', 'intuitive')
+#: the gripper frame in the grasp solver's rotation R: columns (R e_z, R e_y, -R e_x)
+GRIPPER_IN_GRASP_FRAME = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+
+
+class PlanningError(ValueError):
+    """A pattern or rod the planner cannot turn into a trajectory (never a partial trajectory)."""
+
+
+@dataclass
+class PlannerSettings:
+    method: str = 'nn'
+    step_m: float = 0.005                 # Alg. 4's step of deployment (node spacing along the pattern)
+    smoothing_m: float = 0.0005           # RMS distance the smoothing spline may keep from the pattern points
+    speed_m_s: float = 0.01               # gripper speed (quasi-static deployment)
+    max_angular_rate_rad_s: float = 0.2   # gripper turning rate cap
+    lead_in_poses: int = 20               # poses from the hanging pose to the first grasp
+    min_ls_bar: float = 0.5               # the suspended part never shorter than this (the grasp data's range)
+    max_abs_kappa_bar: float = 4.0        # the grasp data's range of curvature
+
+    def validate(self):
+        if self.method not in METHODS:
+            raise PlanningError(f'unknown method {self.method!r} (one of {", ".join(METHODS)})')
+        for name in ('step_m', 'speed_m_s', 'max_angular_rate_rad_s', 'min_ls_bar', 'max_abs_kappa_bar'):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise PlanningError(f'{name} must be positive, got {v}')
+        if not (np.isfinite(self.smoothing_m) and self.smoothing_m >= 0):
+            raise PlanningError(f'smoothing_m must be >= 0, got {self.smoothing_m}')
+
+
+@dataclass
+class ProcessedPattern:
+    s: np.ndarray          # (m,) arc length [m]
+    xy: np.ndarray         # (m, 2) points [m]
+    tangent: np.ndarray    # (m, 2) unit tangents
+    kappa: np.ndarray      # (m,) signed curvature [1/m], > 0 turning left
+
+    @property
+    def length(self):
+        return float(self.s[-1])
+
+
+@dataclass
+class PlannedTrajectory:
+    t: np.ndarray                 # (n,) [s]
+    position: np.ndarray          # (n, 3) held node of the rod, table frame [m]
+    quaternion: np.ndarray        # (n, 4) gripper orientation, scalar-last
+    pattern: ProcessedPattern     # the nodes of Alg. 4
+    inputs: np.ndarray            # (m, 3) (ls_bar, ks_bar, kappa_bar) per node, released sign of kappa_bar
+    grasp_position: np.ndarray    # (m, 3) q_bar_M in the local frame [L_gb]
+    grasp_rotvec: np.ndarray      # (m, 3)
+    first_grasp_index: int        # row of the first pattern node (rows before it: hanging pose and lead-in)
+    method: str
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def rotation(self):
+        return Rotation.from_quat(self.quaternion)
+
+
+def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005) -> ProcessedPattern:
+    """ProcessPattern of Alg. 4: smoothing spline, uniform arc-length resampling, tangent, signed curvature."""
+    xy = check_pattern(points_xy)
+    # parameterise by chord length so that the spline's parameter is close to arc length
+    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    k = 3 if len(xy) > 3 else 2
+    try:
+        tck, _ = splprep([xy[:, 0], xy[:, 1]], u=chord / chord[-1], k=k, s=len(xy) * smoothing_m ** 2)
+    except (ValueError, TypeError) as e:
+        raise PatternError(f'the pattern cannot be fitted by a smoothing spline: {e}') from None
+    u = np.linspace(0.0, 1.0, max(2000, 20 * len(xy)))
+    dense = np.stack(splev(u, tck), axis=1)
+    s_dense = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+    length = s_dense[-1]
+    if length < 2 * step_m:
+        raise PatternError(f'the pattern is {length:.4g} m long, shorter than two steps of {step_m:g} m')
+    n = int(np.floor(length / step_m + 1e-9)) + 1
+    s = np.arange(n) * step_m
+    uu = np.interp(s, s_dense, u)
+    p = np.stack(splev(uu, tck), axis=1)
+    d1 = np.stack(splev(uu, tck, der=1), axis=1)
+    d2 = np.stack(splev(uu, tck, der=2), axis=1)
+    speed = np.linalg.norm(d1, axis=1)
+    if np.any(speed < 1e-12):
+        i = int(np.argmin(speed))
+        raise PatternError(f'the pattern has a cusp near ({p[i, 0]:.4g}, {p[i, 1]:.4g}) m (node {i}): it turns back '
+                           f'on itself, which a rod cannot follow')
+    tangent = d1 / speed[:, None]
+    kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed ** 3
+    return ProcessedPattern(s=s, xy=p, tangent=tangent, kappa=kappa)
+
+
+def local_frames(tangent):
+    """R_t = (x_hat, z_hat x x_hat, z_hat) per node, (m, 3, 3)."""
+    m = len(tangent)
+    R = np.zeros((m, 3, 3))
+    R[:, 0, 0], R[:, 1, 0] = tangent[:, 0], tangent[:, 1]
+    R[:, 0, 1], R[:, 1, 1] = -tangent[:, 1], tangent[:, 0]
+    R[:, 2, 2] = 1.0
+    return R
+
+
+def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: PlannerSettings) -> np.ndarray:
+    """(ls_bar, ks_bar, kappa_bar) per node, with the checks that make a trajectory possible."""
+    L, Lgb = rod.length_m, rod.gravito_bending_length_m
+    ls_bar = (L - pattern.s) / Lgb
+    short = np.flatnonzero(ls_bar < settings.min_ls_bar)
+    if short.size:
+        i = int(short[0])
+        raise PlanningError(
+            f'the pattern ({pattern.length:.3f} m) is longer than the rod allows: at node {i} '
+            f'({pattern.xy[i, 0]:.4f}, {pattern.xy[i, 1]:.4f}) m only {L - pattern.s[i]:.4f} m of the {L:g} m rod '
+            f'would remain suspended (at least {settings.min_ls_bar:g} L_gb = {settings.min_ls_bar * Lgb:.4f} m); '
+            f'patterns up to {L - settings.min_ls_bar * Lgb:.3f} m fit this rod')
+    kappa_bar = -pattern.kappa * Lgb                                   # the released sign
+    sharp = np.flatnonzero(np.abs(kappa_bar) > settings.max_abs_kappa_bar)
+    if sharp.size:
+        i = int(sharp[0])
+        raise PlanningError(
+            f'the pattern bends too sharply for this rod at node {i} ({pattern.xy[i, 0]:.4f}, '
+            f'{pattern.xy[i, 1]:.4f}) m: radius {1 / abs(pattern.kappa[i]):.4f} m, |kappa_bar| = '
+            f'{abs(kappa_bar[i]):.3g} > {settings.max_abs_kappa_bar:g} (smallest radius the rod can follow: '
+            f'{Lgb / settings.max_abs_kappa_bar:.4f} m); smooth the pattern (--smoothing) or use a stiffer rod')
+    return np.column_stack([ls_bar, np.full_like(ls_bar, rod.ks_bar), kappa_bar])
+
+
+def grasps(inputs, method, progress=None):
+    """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs."""
+    if method == 'nn':
+        from .neural_controller import load_grasp_network
+        return load_grasp_network().predict(inputs[:, 0], inputs[:, 1], inputs[:, 2])
+    if method == 'numeric':
+        from .optimal_grasp import grasp_sequence
+        from .suspended_rod import BVPError
+        try:
+            seq = grasp_sequence(inputs, progress=progress)
+        except (BVPError, RuntimeError, ValueError) as e:
+            raise PlanningError(f'the numeric grasp solver failed along the pattern: {e}') from None
+        return np.array([g.position for g in seq]), np.array([g.rotvec for g in seq])
+    # intuitive (Fig. 2a): straight above the contact point at the height of the suspended length, rod vertical
+    position = np.column_stack([np.zeros(len(inputs)), np.zeros(len(inputs)), inputs[:, 0]])
+    rotvec = np.tile([0.0, -np.pi / 2, 0.0], (len(inputs), 1))
+    return position, rotvec
+
+
+def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | None = None,
+                    progress=None) -> PlannedTrajectory:
+    """Alg. 4: gripper poses (table frame) that lay ``rod`` along the pattern ``points_xy`` [m]."""
+    settings = settings or PlannerSettings()
+    settings.validate()
+    t0 = time.perf_counter()
+    pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m)
+    inputs = node_inputs(pattern, rod, settings)
+    t1 = time.perf_counter()
+    qbar, rotvec = grasps(inputs, settings.method, progress)
+    t2 = time.perf_counter()
+    Lgb = rod.gravito_bending_length_m
+    Rt = local_frames(pattern.tangent)
+    qc = np.column_stack([pattern.xy, np.zeros(len(pattern.xy))])
+    position = qc + np.einsum('nij,nj->ni', Rt, qbar) * Lgb
+    R_grip = Rt @ Rotation.from_rotvec(rotvec).as_matrix() @ GRIPPER_IN_GRASP_FRAME
+    # the hanging pose: rod straight up from P(0), gripper turned like the first grasp about the vertical
+    x0 = R_grip[0][:, 0].copy()
+    x0[2] = 0.0
+    if np.linalg.norm(x0) < 1e-6:
+        x0 = np.array([-pattern.tangent[0, 0], -pattern.tangent[0, 1], 0.0])
+    x0 /= np.linalg.norm(x0)
+    z0 = np.array([0.0, 0.0, -1.0])
+    hang_R = np.column_stack([x0, np.cross(z0, x0), z0])
+    hang_p = np.array([pattern.xy[0, 0], pattern.xy[0, 1], rod.radius_m + rod.length_m])
+    n_lead = max(int(settings.lead_in_poses), 1)
+    lam = np.arange(n_lead) / n_lead
+    lead_p = hang_p[None] + lam[:, None] * (position[0] - hang_p)[None]
+    slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([hang_R, R_grip[0]])))
+    lead_R = slerp(lam).as_matrix()
+    all_p = np.vstack([lead_p, position])
+    quat = Rotation.from_matrix(np.vstack([lead_R, R_grip])).as_quat()
+    for i in range(1, len(quat)):                 # one hemisphere: no sign flips between neighbours
+        if np.dot(quat[i], quat[i - 1]) < 0:
+            quat[i] = -quat[i]
+    t = trajectory_times(all_p, quat, settings.speed_m_s, settings.max_angular_rate_rad_s)
+    return PlannedTrajectory(t=t, position=all_p, quaternion=quat, pattern=pattern, inputs=inputs,
+                             grasp_position=qbar, grasp_rotvec=rotvec, first_grasp_index=n_lead,
+                             method=settings.method,
+                             timings_s={'pattern': t1 - t0, 'grasps': t2 - t1, 'total': time.perf_counter() - t0})
+
+
+def trajectory_times(position, quaternion, speed_m_s, max_angular_rate_rad_s, min_dt_s=1e-3):
+    """Times of the poses: each segment at the gripper speed, slower where the turning rate would exceed its cap."""
+    dp = np.linalg.norm(np.diff(position, axis=0), axis=1)
+    dots = np.clip(np.abs(np.sum(quaternion[1:] * quaternion[:-1], axis=1)), 0.0, 1.0)
+    dtheta = 2.0 * np.arccos(dots)
+    dt = np.maximum(np.maximum(dp / speed_m_s, dtheta / max_angular_rate_rad_s), min_dt_s)
+    return np.concatenate([[0.0], np.cumsum(dt)])
