@@ -7,7 +7,7 @@ import argparse
 import importlib
 import sys
 
-SUBCOMMAND_MODULES = ('grasp', 'perceive')
+SUBCOMMAND_MODULES = ('grasp', 'perceive', 'plan', 'simulate', 'evaluate')
 
 
 class CliError(Exception):
@@ -17,7 +17,8 @@ class CliError(Exception):
 def build_parser():
     parser = argparse.ArgumentParser(
         prog='rod-deploy',
-        description='Rod deployment tools: optimal grasp, pattern perception.')
+        description='Rod deployment tools: optimal grasp, pattern perception, trajectory planning, deployment '
+                    'simulation and its Eq. 17 error.')
     sub = parser.add_subparsers(dest='command', required=True)
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(f'rod_deploy.cli.{name}').register(sub)

@@ -9,9 +9,11 @@ The free end is held in place during the lead-in - the straight line on which th
 after it. The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
-The trajectory is replayed ``time_scale`` times faster than its stamps (default: so that the gripper moves at most
-5 cm/s; still quasi-static for these rods: their slowest pendulum period is about 2 pi sqrt(L / g) ~ 1.9 s for a
-0.9 m rod, and the deployment takes far longer), with implicit-Euler steps of ``dt_s``. At the end the deployed
+The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
+quasi-static; at 0.05 m/s the hanging rod already drags its free end along a straight line) in implicit-Euler steps
+of ``dt_s``, then held still for ``settle_s``. Friction is Coulomb's law regularised below
+``friction_velocity_m_s``: under a steady tangential load below mu N a node creeps at most at about that speed, so
+slow replays creep more. At the end the deployed
 shape is read off the table: the nodes in contact, in rod order from the free end, up to where the rod lifts off.
 """
 from __future__ import annotations
@@ -40,12 +42,14 @@ class DeploymentError(ValueError):
 class SimulationSettings:
     edge_length_m: float = 0.005     # rod discretisation
     dt_s: float = 0.02               # implicit Euler step (simulated time)
-    max_gripper_speed_m_s: float = 0.05   # replay speed cap (quasi-static)
+    max_gripper_speed_m_s: float = 0.01   # replay speed (quasi-static; 0.05 m/s already drags the free end)
     damping_per_s: float = 2.0       # viscous damping gamma [1/s]: force -gamma m v on every node
     settle_s: float = 1.0            # simulated time at the end with the gripper still
     friction: float | None = None    # Coulomb coefficient; None: the rod file's, else 'medium'
     start_xy: tuple | None = None    # free end's start point; None: below the trajectory's first (hanging) pose
     contact_tolerance_m: float = 0.0   # a node lies on the table if z <= radius + this (contact force on)
+    hold_twist: bool = True          # the gripper also holds the last edge's twist (d1 = x_gripper)
+    friction_velocity_m_s: float = 1e-4   # regularisation of Coulomb friction (creep speed scale)
 
 
 @dataclass
@@ -87,7 +91,7 @@ def lead_in_rows(position, tol_m=1e-4):
     return last + 1
 
 
-def material_parameters(rod: RodDescription, friction: float, damping_per_s: float):
+def material_parameters(rod: RodDescription, friction: float, damping_per_s: float, friction_velocity=1e-4):
     """SI rod parameters with the rod's L_gb: E from L_gb = (E h^2 / (8 rho g))^(1/3) and the density."""
     rho = rod.density_kg_m3 or DEFAULT_DENSITY
     h = rod.radius_m
@@ -99,7 +103,7 @@ def material_parameters(rod: RodDescription, friction: float, damping_per_s: flo
     nu = 0.5
     return RodParameters(EI=EI, EA=E * A, GJ=EI / (1.0 + nu), rho_A=rho * A, radius=h, gravity=(0.0, 0.0, -G),
                          damping=rho * A * damping_per_s, table=True, friction=friction,
-                         friction_velocity=1e-4)
+                         friction_velocity=friction_velocity)
 
 
 def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,
@@ -158,7 +162,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     nodes = np.column_stack([np.full_like(s, start[0]), np.full_like(s, start[1]), h + s])
     p0, R0 = gripper(0.0)
     nodes[-1] = p0                           # the hanging pose itself (checked above)
-    params = material_parameters(rod, friction, settings.damping_per_s)
+    params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
     rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)
     dl = L / n_edges
@@ -189,7 +193,8 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
         return np.array([target])
 
     rod_model.prescribe(top_dofs, top_positions)
-    rod_model.prescribe(np.array([theta_dof]), top_theta)
+    if settings.hold_twist:
+        rod_model.prescribe(np.array([theta_dof]), top_theta)
     free_end = rod_model.node_dof(0)
     hold = {'on': True}
     rod_model.prescribe(free_end, lambda _t: np.array([start[0], start[1], h]))

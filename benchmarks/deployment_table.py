@@ -1,0 +1,143 @@
+"""Paper Table 2 in simulation: patterns x rods x friction x planners, each deployment simulated in our DER and
+scored with Eq. 17 (N = 50).
+
+    python benchmarks/deployment_table.py [--rods 2,3] [--friction medium] [--methods nn,intuitive,published]
+                                          [--patterns all] [--commit-results]
+
+Patterns: the paper's 7 (``../shared/reference/rod_deployment/patterns``, read in place when present) and shapes of
+our own made here by code (a spiral, the digit 2, the letter S, a loop that crosses itself). Rods: the paper's
+Table 1 (#1 pink VPS L_gb 1.8 cm h 1.6 mm L 0.875 m, #2 green VPS 3.2 / 1.6 / 0.885, #3 rope 3.4 / 2.0 / 0.89).
+Friction levels: low 0.2, medium 0.5, high 1.0. Planners: ours (``nn``, ``numeric``), the paper's ``intuitive``
+baseline, and ``published``: the released planner's trajectories for the 7 patterns (rod #3 only, the rod they
+were made for; replayed from the hanging pose above the pattern's first point). Writes a markdown table and a plot
+per case (``--plots``).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from results_dir import add_results_argument, results_path
+from rod_deploy.deployment.metrics import eq17_error
+from rod_deploy.deployment.simulate import FRICTION_LEVELS, SimulationSettings, simulate_deployment
+from rod_deploy.planning.pattern_input import load_pattern
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory, trajectory_times
+
+REF = Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'
+RODS = {1: {'length': 0.875, 'radius': 0.0016, 'L_gb': 0.018},
+        2: {'length': 0.885, 'radius': 0.0016, 'L_gb': 0.032},
+        3: {'length': 0.89, 'radius': 0.002, 'L_gb': 0.034}}
+
+
+def own_patterns():
+    """Shapes of our own, in metres, starting at the origin."""
+    out = {}
+    th = np.linspace(0, 3.2 * np.pi, 400)
+    r = 0.16 - 0.035 * th / np.pi
+    out['spiral'] = np.column_stack([r * np.cos(th) - r[0], r * np.sin(th)])
+    t = np.linspace(0, 1, 300)
+    top = np.column_stack([0.09 * np.cos(np.pi * (1 - t[:150] * 1.25)), 0.09 * np.sin(np.pi * (1 - t[:150] * 1.25))])
+    a = top[-1]
+    foot = np.column_stack([np.linspace(a[0], -0.09, 100), np.linspace(a[1], -0.2, 100)])
+    base = np.column_stack([np.linspace(-0.09, 0.1, 60), np.full(60, -0.2)])
+    digit2 = np.vstack([top, foot[1:], base[1:]])
+    out['digit2'] = digit2 - digit2[0]
+    s = np.linspace(0, 1, 400)
+    out['letterS'] = np.column_stack([0.08 * np.sin(2 * np.pi * s) * (1 - 0.2 * s), -0.4 * s])
+    u = np.linspace(-1.2, 1.2, 400)                                   # a loop that crosses itself (alpha)
+    loop = np.column_stack([0.18 * (u ** 2 - 1), 0.15 * u * (u ** 2 - 1) * 1.5])
+    out['loop_crossing'] = loop - loop[0]
+    return out
+
+
+def published_trajectory(name):
+    d = np.loadtxt(REF / 'reference_outputs' / f'{name}_traj_NN.txt')
+    q = d[:, 3:7] / np.linalg.norm(d[:, 3:7], axis=1, keepdims=True)
+    for i in range(1, len(q)):
+        if np.dot(q[i], q[i - 1]) < 0:
+            q[i] = -q[i]
+    return trajectory_times(d[:, :3], q, 0.01, 0.2), d[:, :3], q
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--rods', default='3')
+    ap.add_argument('--friction', default='medium')
+    ap.add_argument('--methods', default='nn,intuitive,published')
+    ap.add_argument('--patterns', default='all')
+    ap.add_argument('--plots', action='store_true')
+    add_results_argument(ap)
+    args = ap.parse_args()
+    patterns = {}
+    if (REF / 'patterns').exists():
+        for f in sorted((REF / 'patterns').glob('*.txt')):
+            patterns[f.stem] = load_pattern(f)
+    patterns.update(own_patterns())
+    if args.patterns != 'all':
+        patterns = {k: v for k, v in patterns.items() if k in args.patterns.split(',')}
+    methods = args.methods.split(',')
+    frictions = args.friction.split(',')
+    out = results_path(args, 'deployment_table.md')
+    rows = []
+    t_all = time.perf_counter()
+    for rod_id in (int(r) for r in args.rods.split(',')):
+        rod = rod_description_from_dict(RODS[rod_id])
+        for fr in frictions:
+            for name, P in patterns.items():
+                for method in methods:
+                    if method == 'published' and (rod_id != 3 or not (REF / 'reference_outputs' /
+                                                                      f'{name}_traj_NN.txt').exists()):
+                        continue
+                    t0 = time.perf_counter()
+                    try:
+                        if method == 'published':
+                            t, p, q = published_trajectory(name)
+                            start = tuple(P[0])
+                        else:
+                            plan = plan_trajectory(P, rod, PlannerSettings(method=method))
+                            t, p, q, start = plan.t, plan.position, plan.quaternion, None
+                        res = simulate_deployment(t, p, q, rod, SimulationSettings(
+                            friction=FRICTION_LEVELS[fr], start_xy=start))
+                        e = eq17_error(P, res.deployed_xy)
+                        row = (rod_id, fr, name, method, e['e_mean_cm'], e['sigma_cm'], e['coverage'],
+                               res.wall_time_s, '')
+                        if args.plots:
+                            from rod_deploy.deployment.plots import plot_deployment
+                            plot_deployment(out.parent / f'deploy_{name}_{method}_rod{rod_id}_{fr}.png', res, P,
+                                            f'{name}, {method}, rod #{rod_id}, {fr} friction')
+                    except ValueError as exc:
+                        row = (rod_id, fr, name, method, np.nan, np.nan, np.nan, time.perf_counter() - t0,
+                               str(exc)[:90])
+                    rows.append(row)
+                    print(f'rod #{row[0]} {row[1]:6s} {row[2]:14s} {row[3]:10s} e_mean {row[4]:.3f} cm '
+                          f'sigma {row[5]:.3f} coverage {row[6]:.2f} ({row[7]:.0f} s) {row[8]}', flush=True)
+    lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
+             f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
+             'Our DER simulator (edge 5 mm, dt 0.05 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
+             'friction); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
+             'pattern length. Self-contact ignored.', '',
+             '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
+             '|---|---|---|---|---|---|---|---|---|']
+    for r in rows:
+        lines.append(f'| #{r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]:.3f} | {r[5]:.3f} | {r[6]:.2f} | {r[7]:.0f} | '
+                     f'{r[8]} |')
+    by = {}
+    for r in rows:
+        if np.isfinite(r[4]):
+            by.setdefault(r[3], []).append(r[4])
+    lines += ['', '| planner | cases | mean e_mean cm | max |', '|---|---|---|---|']
+    for m, v in by.items():
+        lines.append(f'| {m} | {len(v)} | {np.mean(v):.3f} | {np.max(v):.3f} |')
+    out.write_text('\n'.join(lines) + '\n')
+    print('\n'.join(lines[-2 - len(by):]))
+    print(f'results: {out}')
+
+
+if __name__ == '__main__':
+    main()

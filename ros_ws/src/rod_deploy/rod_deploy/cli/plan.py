@@ -1,0 +1,80 @@
+"""`rod-deploy plan`: the gripper trajectory that lays a rod along a pattern (paper Alg. 4).
+
+    rod-deploy plan --pattern P --rod ROD.yaml [--method nn|numeric|intuitive] --out traj.csv [--plot traj.png]
+                    [--m-per-px S [--origin ROW COL] | --homography H.txt] [--object K]
+                    [--step 0.005] [--smoothing 0.0005] [--speed 0.01]
+
+P: a points file (x y [z] per line, metres, table frame) or an image of a drawn stroke / a photographed rod with
+its mapping (as for ``rod-deploy perceive``). Writes the contract's trajectory CSV (t,x,y,z,qx,qy,qz,qw: table
+frame, the held node of the rod, +z_gripper along which the rod leaves the gripper), starting at the hanging pose.
+Methods: ``nn`` (default, the trained network), ``numeric`` (the optimal-grasp solver along the pattern with
+curvature continuation: slow, exact), ``intuitive`` (the paper's baseline). A pattern that cannot be deployed (too
+long for the rod, too sharp, fewer than 3 points, NaN, repeated points) gives one error line naming the point,
+exit 2, and no file.
+"""
+from __future__ import annotations
+
+import json
+
+from rod_deploy.cli.main import CliError
+
+
+def register(subparsers):
+    p = subparsers.add_parser('plan', help='gripper trajectory for a pattern (Alg. 4): nn, numeric or intuitive',
+                              description=__doc__.split('\n\n')[0])
+    p.add_argument('--pattern', required=True, help='points file (x y [z], metres) or image of the pattern')
+    p.add_argument('--rod', required=True, help='rod description YAML (length, radius, L_gb | loop_height | E+rho)')
+    p.add_argument('--method', choices=('nn', 'numeric', 'intuitive'), default='nn')
+    p.add_argument('--out', required=True, help='trajectory CSV to write')
+    p.add_argument('--plot', help='PNG: the pattern and the gripper path (top view and side view)')
+    p.add_argument('--m-per-px', type=float, help='image pattern: table metres per pixel')
+    p.add_argument('--origin', type=float, nargs=2, metavar=('ROW', 'COL'), help='origin pixel for --m-per-px')
+    p.add_argument('--homography', help='image pattern: 3x3 homography file')
+    p.add_argument('--object', type=int, default=0, help='image pattern: which object (default 0, the longest)')
+    p.add_argument('--step', type=float, default=0.005, help='node spacing along the pattern [m] (default 0.005)')
+    p.add_argument('--smoothing', type=float, default=0.0005,
+                   help='RMS distance the smoothing spline may keep from the pattern points [m] (default 0.0005)')
+    p.add_argument('--speed', type=float, default=0.01, help='gripper speed [m/s] (default 0.01)')
+    p.add_argument('--quiet', action='store_true', help='no progress bar (numeric method)')
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from rod_deploy.planning.neural_controller import OutOfTrainedRange
+    from rod_deploy.planning.pattern_input import load_pattern
+    from rod_deploy.planning.rod_description import load_rod_description
+    from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+    from rod_deploy.planning.trajectory_io import write_trajectory_csv
+
+    try:
+        rod = load_rod_description(args.rod)
+        points = load_pattern(args.pattern, m_per_px=args.m_per_px, origin=args.origin, homography=args.homography,
+                              object_index=args.object)
+        settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
+                                   speed_m_s=args.speed)
+        bar = None
+        if args.method == 'numeric' and not args.quiet:
+            from tqdm import tqdm
+            bar = tqdm(desc='numeric grasps', unit='node', disable=None)
+        try:
+            plan = plan_trajectory(points, rod, settings, progress=(lambda k: bar.update(1)) if bar else None)
+        finally:
+            if bar is not None:
+                bar.close()
+    except OutOfTrainedRange as e:
+        raise CliError(f'{e}') from None
+    except ValueError as e:
+        raise CliError(str(e)) from None
+    write_trajectory_csv(args.out, plan.t, plan.position, plan.quaternion)
+    summary = {'trajectory': str(args.out), 'method': plan.method, 'poses': int(len(plan.t)),
+               'pattern_nodes': int(len(plan.pattern.s)), 'pattern_length_m': round(plan.pattern.length, 6),
+               'duration_s': round(float(plan.t[-1]), 3), 'lead_in_poses': plan.first_grasp_index,
+               'ls_bar_range': [round(float(plan.inputs[:, 0].min()), 4), round(float(plan.inputs[:, 0].max()), 4)],
+               'max_abs_kappa_bar': round(float(abs(plan.inputs[:, 2]).max()), 4), 'ks_bar': round(rod.ks_bar, 2),
+               'planning_time_s': round(plan.timings_s['total'], 4)}
+    if args.plot:
+        from rod_deploy.deployment.plots import plot_plan
+        plot_plan(args.plot, plan)
+        summary['plot'] = str(args.plot)
+    print(json.dumps(summary))
+    return 0

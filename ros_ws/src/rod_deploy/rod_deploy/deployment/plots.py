@@ -1,0 +1,63 @@
+"""Plots of a planned trajectory and of a simulated deployment (matplotlib, Agg)."""
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def plot_plan(path, plan):
+    """Top view (pattern, gripper path) and side view (gripper height along the pattern)."""
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.6))
+    P, g = plan.pattern.xy, plan.position
+    k = plan.first_grasp_index
+    a.plot(P[:, 0], P[:, 1], 'k-', lw=2, label='pattern (smoothed, resampled)')
+    a.plot(g[:k + 1, 0], g[:k + 1, 1], ':', color='tab:gray', label='lead-in from the hanging pose')
+    a.plot(g[k:, 0], g[k:, 1], '-', color='tab:red', lw=1.2, label=f'gripper ({plan.method})')
+    a.plot(P[0, 0], P[0, 1], 'o', color='k', ms=5, label='start (free end)')
+    a.set_aspect('equal', adjustable='datalim')
+    a.set_xlabel('x [m]')
+    a.set_ylabel('y [m]')
+    a.legend(fontsize=8)
+    a.grid(alpha=0.3)
+    a.set_title('top view (table frame)', fontsize=9)
+    b.plot(plan.t, g[:, 2], color='tab:red')
+    b.axvline(plan.t[k], color='0.6', ls=':', lw=1)
+    b.set_xlabel('time [s]')
+    b.set_ylabel('gripper height [m]')
+    b.grid(alpha=0.3)
+    b.set_title(f'{len(plan.t)} poses, {plan.t[-1]:.0f} s at the planned speed', fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_deployment(path, result, pattern_xy=None, title=''):
+    """Prescribed (if known) vs deployed shape on the table, with the gripper path projected on the table."""
+    fig, ax = plt.subplots(figsize=(7, 6))
+    if pattern_xy is not None:
+        ax.plot(pattern_xy[:, 0], pattern_xy[:, 1], 'k-', lw=3, alpha=0.35, label='prescribed')
+    d = result.deployed_xy
+    ax.plot(d[:, 0], d[:, 1], '-', color='tab:blue', lw=1.5, label='deployed (simulated)')
+    ax.plot(d[0, 0], d[0, 1], 'o', color='tab:blue', ms=5)
+    gp = result.gripper_path
+    ax.plot(gp[:, 0], gp[:, 1], '--', color='tab:red', lw=0.8, label='gripper path (top view)')
+    n = result.nodes
+    ax.plot(n[:, 0], n[:, 1], '-', color='tab:green', lw=0.8, alpha=0.7, label='whole rod at the end (top view)')
+    if pattern_xy is not None and len(d) > 1:
+        from .metrics import eq17_error
+        e = eq17_error(pattern_xy, d)
+        ax.set_title(f'{title}\nEq. 17: e_mean {e["e_mean_cm"]:.3f} cm, sigma {e["sigma_cm"]:.3f} cm, '
+                     f'coverage {e["coverage"]:.2f}; friction {result.friction:g}', fontsize=9)
+    else:
+        ax.set_title(f'{title}\nfriction {result.friction:g}', fontsize=9)
+    ax.set_aspect('equal', adjustable='datalim')
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m]')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

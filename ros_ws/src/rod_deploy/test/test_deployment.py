@@ -1,0 +1,116 @@
+"""Deployment: Eq. 17 on known curves, the deployed-shape file, a short simulated deployment, the CLIs."""
+import json
+
+import numpy as np
+import pytest
+
+from rod_deploy.cli.main import main as cli
+from rod_deploy.deployment.metrics import DeployedShapeError, eq17_error, read_deployed_csv, write_deployed_csv
+from rod_deploy.deployment.simulate import DeploymentError, SimulationSettings, lead_in_rows, simulate_deployment
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+
+LINE = np.column_stack([np.linspace(0, 0.3, 61), np.zeros(61)])
+SHORT_ROD = rod_description_from_dict({'length': 0.4, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
+
+
+def test_eq17_shift_reversal_and_cut():
+    shifted = LINE + [0.0, 0.004]
+    e = eq17_error(LINE, shifted)
+    assert e['e_mean_cm'] == pytest.approx(0.4) and e['sigma_cm'] == pytest.approx(0.0, abs=1e-9)
+    assert e['coverage'] == pytest.approx(1.0)
+    rev = eq17_error(LINE, shifted[::-1])                    # a drawn stroke has no direction
+    assert rev['e_mean_cm'] == pytest.approx(0.4) and rev['reversed']
+    assert eq17_error(LINE, shifted[::-1], directed=True)['e_mean_cm'] > 10
+    longer = np.column_stack([np.linspace(0, 0.36, 73), np.zeros(73)])
+    e = eq17_error(LINE, longer)                              # cut at the pattern length
+    assert e['e_mean_cm'] == pytest.approx(0.0, abs=1e-9) and e['coverage'] == pytest.approx(1.2)
+    # a curve that goes wrong half way: mean and spread as computed by hand on the 50 resampled points
+    bent = LINE.copy()
+    bent[31:, 1] = (bent[31:, 0] - 0.15) * 0.2
+    e = eq17_error(LINE, bent)
+    assert 0.1 < e['e_mean_cm'] < 1.0 and e['sigma_cm'] > 0.1
+
+
+def test_deployed_csv_round_trip_and_errors(tmp_path):
+    write_deployed_csv(tmp_path / 'd.csv', LINE)
+    np.testing.assert_allclose(read_deployed_csv(tmp_path / 'd.csv'), LINE)
+    (tmp_path / 'bad.csv').write_text('a,b\n1,2\n')
+    with pytest.raises(DeployedShapeError, match='header'):
+        read_deployed_csv(tmp_path / 'bad.csv')
+    with pytest.raises(DeployedShapeError, match='cannot read'):
+        read_deployed_csv(tmp_path / 'missing.csv')
+
+
+def test_lead_in_is_the_straight_line_leaving_the_first_pose():
+    p = np.array([[0, 0, 1], [0.1, 0, 0.9], [0.2, 0, 0.8], [0.3, 0.05, 0.7], [0.4, 0.1, 0.6]], float)
+    assert lead_in_rows(p) == 3
+
+
+@pytest.fixture(scope='module')
+def straight_deployment():
+    plan = plan_trajectory(LINE, SHORT_ROD, PlannerSettings(method='nn'))
+    return plan, simulate_deployment(plan.t, plan.position, plan.quaternion, SHORT_ROD,
+                                     SimulationSettings(edge_length_m=0.01))
+
+
+def test_a_straight_deployment_lays_the_rod_straight(straight_deployment):
+    plan, res = straight_deployment
+    e = eq17_error(LINE, res.deployed_xy)
+    assert e['e_mean_cm'] < 0.1, e                           # ours: about 0.03 cm on the 0.5 m published line
+    assert 0.97 < e['coverage'] < 1.1
+    assert np.linalg.norm(res.deployed_xy[0] - LINE[0]) < 0.003     # the free end stayed where it started
+    assert np.all(res.nodes[:, 2] > 0.002 - 1e-4)                  # nothing sinks into the table
+
+
+def test_the_intuitive_baseline_lays_it_worse(straight_deployment):
+    plan = plan_trajectory(LINE, SHORT_ROD, PlannerSettings(method='intuitive'))
+    res = simulate_deployment(plan.t, plan.position, plan.quaternion, SHORT_ROD, SimulationSettings(edge_length_m=0.01))
+    ours = eq17_error(LINE, straight_deployment[1].deployed_xy)['e_mean_cm']
+    assert eq17_error(LINE, res.deployed_xy)['e_mean_cm'] > 3 * ours
+
+
+def test_a_trajectory_not_starting_hanging_needs_the_start_point(straight_deployment):
+    plan, _ = straight_deployment
+    k = plan.first_grasp_index
+    with pytest.raises(DeploymentError, match='hanging pose'):
+        simulate_deployment(plan.t[k:], plan.position[k:], plan.quaternion[k:], SHORT_ROD)
+
+
+def test_cli_plan_simulate_evaluate(tmp_path, capsys):
+    pattern = tmp_path / 'p.txt'
+    np.savetxt(pattern, LINE)
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.4\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(tmp_path / 't.csv'),
+                '--plot', str(tmp_path / 'plan.png')]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['method'] == 'nn' and summary['pattern_nodes'] == 61 and (tmp_path / 'plan.png').exists()
+    assert (tmp_path / 't.csv').read_text().startswith('t,x,y,z,qx,qy,qz,qw\n')
+    assert cli(['simulate', '--traj', str(tmp_path / 't.csv'), '--rod', str(rod), '--out', str(tmp_path / 'd.csv'),
+                '--edge-length', '0.01', '--quiet', '--plot', str(tmp_path / 'd.png'),
+                '--pattern', str(pattern)]) == 0
+    sim = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert sim['e_mean_cm'] < 0.1 and (tmp_path / 'd.png').exists()
+    assert cli(['evaluate', '--pattern', str(pattern), '--deployed', str(tmp_path / 'd.csv')]) == 0
+    ev = json.loads(capsys.readouterr().out)
+    assert ev['e_mean_cm'] == pytest.approx(sim['e_mean_cm']) and set(ev) >= {'e_mean_cm', 'sigma_cm', 'coverage'}
+
+
+@pytest.mark.parametrize('args, words', [
+    (['plan', '--pattern', '{missing}', '--rod', '{rod}', '--out', '{out}'], 'does not exist'),
+    (['plan', '--pattern', '{long}', '--rod', '{rod}', '--out', '{out}'], 'longer than the rod allows'),
+    (['simulate', '--traj', '{long}', '--rod', '{rod}', '--out', '{out}'], 'header'),
+    (['evaluate', '--pattern', '{long}', '--deployed', '{long}'], 'header'),
+    (['plan', '--pattern', '{long}', '--rod', '{missing}', '--out', '{out}'], 'cannot read rod description'),
+])
+def test_cli_errors_are_one_line_and_write_nothing(tmp_path, capsys, args, words):
+    long = tmp_path / 'long.txt'
+    np.savetxt(long, np.column_stack([np.linspace(0, 0.5, 101), np.zeros(101)]))
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.4\nradius: 0.002\nL_gb: 0.034\n')
+    names = {'missing': tmp_path / 'nope.txt', 'rod': rod, 'out': tmp_path / 'out.csv', 'long': long}
+    assert cli([a.format(**names) for a in args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert not (tmp_path / 'out.csv').exists()
