@@ -37,6 +37,8 @@ def _cases(bag, tmp_path):
         'pattern_perception': {'m_per_px': 0.002, 'origin_row': 10, 'origin_col': 5.5,
                                'homography': [1, 0, 0, 0, 1, 0, 0, 0, 1], 'step_px': 3,
                                'object_index': 1, 'best_effort_input': True},
+        'grasp_trajectory_generator': {'length': 0.89, 'radius': 0.002, 'L_gb': 0.034, 'method': 'numeric',
+                                       'step_m': 0.004, 'smoothing_m': 0, 'speed_m_s': 0.02},
     }
 
 
@@ -73,7 +75,8 @@ def _same(a, b):
 
 
 @pytest.mark.parametrize('how', ['command_line', 'params_file'])
-@pytest.mark.parametrize('node', ['bag_player', 'joint_state_logger', 'stiffness_identifier', 'pattern_perception'])
+@pytest.mark.parametrize('node', ['bag_player', 'joint_state_logger', 'stiffness_identifier', 'pattern_perception',
+                                  'grasp_trajectory_generator'])
 def test_every_parameter_is_settable(ros_context, bag, tmp_path, node, how):
     params = _cases(bag, tmp_path)[node]
     args = [os.path.join(BIN, node), '--ros-args', '--log-level', 'warn']
@@ -137,3 +140,9 @@ def test_logger_refuses_to_start_where_it_cannot_record(tmp_path, setup, param, 
 
 def test_bag_tools_info_on_a_non_bag_is_one_line(tmp_path):
     _one_error_line([os.path.join(BIN, 'bag-tools'), 'info', '/dev/null'], 'bag-tools info: error:')
+
+
+def test_grasp_trajectory_generator_needs_a_rod(tmp_path):
+    _one_error_line([os.path.join(BIN, 'grasp_trajectory_generator')], "give the rod")
+    _one_error_line([os.path.join(BIN, 'grasp_trajectory_generator'), '--ros-args', '-p',
+                     f'rod_yaml:={tmp_path / "none.yaml"}'], 'cannot read rod description')

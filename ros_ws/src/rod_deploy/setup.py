@@ -20,6 +20,7 @@ setup(
     entry_points={
         'console_scripts': [
             'pattern_perception = rod_deploy.nodes.pattern_perception:main',
+            'grasp_trajectory_generator = rod_deploy.nodes.grasp_trajectory_generator:main',
             'rod-deploy = rod_deploy.cli.main:main',
         ],
     },
