@@ -54,6 +54,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--diagnose', action='store_true',
                    help='after identification, find, add and jointly identify the effects the declared model lacks '
                         '(report: effects_added)')
+    p.add_argument('--validation-fraction', type=float, default=0.3,
+                   help='arm-only experiments: the last part of the window kept out of every fit and used to decide '
+                        'which effects to add (default 0.3)')
     p.add_argument('--no-plots', action='store_true', help='write report.json only')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     from flex_ident.cli.request import register
@@ -129,7 +132,8 @@ def identify_command(args) -> int:
         run = identify(args.bag, args.experiment, args.out,
                        IdentificationSettings(method=method, cost=args.cost, max_iterations=args.max_iterations,
                                               continuation=not args.no_continuation,
-                                              plots=not args.no_plots, diagnose=args.diagnose), progress=bar)
+                                              plots=not args.no_plots, diagnose=args.diagnose,
+                                              validation_fraction=args.validation_fraction), progress=bar)
     finally:
         bar.close()
     report = run.report
@@ -137,6 +141,7 @@ def identify_command(args) -> int:
                'error_before': report['error_before'], 'error_after': report['error_after'],
                'effects_added': [{'name': e['name'], 'parameters': e['parameters']}
                                  for e in report.get('effects_added', [])],
+               **({'warnings': report['warnings']} if report.get('warnings') else {}),
                'iterations': report['iterations'], 'wall_time_s': round(report['wall_time_s'], 2),
                'report': str((__import__('pathlib').Path(args.out) / 'report.json'))}
     print(json.dumps(summary, indent=2))

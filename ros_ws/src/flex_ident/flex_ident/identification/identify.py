@@ -51,6 +51,7 @@ class IdentificationSettings:
     continuation: bool = True                   # warm start on the first 2.5 s, 5 s, 10 s, ... of the recording
     first_window_s: float = 2.5
     diagnose: bool = False                      # closed loop: find, add and jointly identify missing effects
+    validation_fraction: float = 0.3            # arm-only experiments: last part of the window, never fitted
 
 
 @dataclass
@@ -113,6 +114,11 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     stale = out / 'report.json'
     if stale.exists():
         stale.unlink()
+    spec = load_experiment(experiment_path)
+    if spec.object is None:                     # an arm alone: the closed loop in the torque domain
+        from .arm_only import identify_arm_only
+        report = identify_arm_only(bag_path, spec, out, settings.validation_fraction, settings.plots, progress)
+        return IdentificationRun(report=report, model=None, problem=None, result=None, initial=None)
     experiment, model, problem, notes = prepare(bag_path, experiment_path, settings, progress)
     specs = experiment.identify.parameters
     p0 = np.array([p.initial for p in specs], float)

@@ -56,8 +56,10 @@ class RawBagWriter:
             raise BagError(f'output bag {self.path} already exists; choose a new directory')
         plugin = storage_plugin(storage)
         parent = self.path.resolve().parent
-        if not parent.is_dir():
-            raise BagError(f'cannot create bag {self.path}: {parent} is not an existing directory')
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise BagError(f'cannot create bag {self.path}: {exc.strerror} ({parent})') from None
         self._writer = Writer(self.path, version=9, storage_plugin=plugin)
         try:
             self._writer.open()
