@@ -89,8 +89,8 @@ class JointPlan:
     def summary(self) -> dict:
         tr = self.trajectory
         return {'poses': int(len(tr.t_s)), 'duration_s': float(tr.t_s[-1]), 'time_scale': tr.time_scale,
-                'timing': tr.note, 'peak_velocity_ratio': tr.peak_velocity_ratio,
-                'peak_acceleration_ratio': tr.peak_acceleration_ratio, **self.tracking_error,
+                'timing': tr.note, 'peak_velocity_ratio': float(tr.peak_velocity_ratio),
+                'peak_acceleration_ratio': float(tr.peak_acceleration_ratio), **self.tracking_error,
                 'ik_iterations_mean': self.ik_iterations_mean, 'wall_time_s': self.wall_time_s}
 
 
