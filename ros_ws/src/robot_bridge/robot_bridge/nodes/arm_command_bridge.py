@@ -113,7 +113,7 @@ class ArmCommandBridge(Node):
             except ValueError as exc:
                 self._status(DiagnosticStatus.ERROR, f'cannot read {csv_path}: {exc}', {})
                 raise
-            self.handle(path, source=csv_path)
+            self.plan_and_publish(path, source=csv_path)
 
     def _on_joint_states(self, msg: JointState):
         if len(msg.position) != len(msg.name):
@@ -128,9 +128,9 @@ class ArmCommandBridge(Node):
                 self.current_q = q
 
     def _on_path(self, msg: Path):
-        self.handle(path_from_msg(msg), source=PATH_TOPIC)
+        self.plan_and_publish(path_from_msg(msg), source=PATH_TOPIC)
 
-    def handle(self, path: GripperPath, source: str) -> bool:
+    def plan_and_publish(self, path: GripperPath, source: str) -> bool:
         """Plan and publish; on rejection publish only the ERROR status. Returns whether a command went out."""
         with self._lock:
             q_now = None if self.current_q is None else self.current_q.copy()
