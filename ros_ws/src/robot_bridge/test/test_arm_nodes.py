@@ -107,7 +107,7 @@ def test_sim_arm_executes_the_bridges_trajectory_and_follows_the_path(ros_contex
     bridge = ros_context.add(ArmCommandBridge(context=ros_context.context))
     probe = Probe(ros_context)
     assert wait_for(lambda: bridge.current_q is not None and probe.path_pub.get_subscription_count() >= 1
-                    and sim.count_publishers('/arm_controller/joint_trajectory') >= 1)
+                    and bridge.cmd_pub.get_subscription_count() >= 2)      # the probe and sim_arm
     path = short_path(n=20, duration_s=2.0)
     probe.path_pub.publish(path_msg(path, probe.node))
     assert wait_for(lambda: len(probe.commands) == 1 and sim.trajectory_done, timeout_s=20)

@@ -141,19 +141,20 @@ class PathIK:
         for k in range(k_total):
             target = pin.SE3(targets[k])
             q, pos, rot, it = self.solve_pose(target, q_prev)
-            if not self._reached(pos, rot):
-                q2, pos2, rot2, it2 = self.solve_pose(target, self.posture)
-                it += it2
-                if pos2 + rot2 < pos + rot:
-                    q, pos, rot = q2, pos2, rot2
             failure = None
             if not self._reached(pos, rot):
-                failure = IKFailure(k, self._diagnose(target, q, pos, rot))
-            elif k and np.max(np.abs(q - q_prev)) > self.settings.max_jump_rad:
-                j = int(np.argmax(np.abs(q - q_prev)))
-                failure = IKFailure(k, f'the IK solution jumps by {abs(q[j] - q_prev[j]):.2f} rad on joint '
-                                       f'{self.arm.joint_names[j]} from the previous pose (a change of IK branch: '
-                                       f'the path passes a singularity or a joint limit)')
+                why = self._diagnose(target, q, pos, rot)
+                q2, pos2, rot2, it2 = self.solve_pose(target, self.posture)
+                it += it2
+                if not self._reached(pos2, rot2):
+                    failure = IKFailure(k, why)
+                elif k and np.max(np.abs(q2 - q_prev)) > self.settings.max_jump_rad:
+                    j = int(np.argmax(np.abs(q2 - q_prev)))
+                    failure = IKFailure(k, f'continuing from the previous pose: {why}; '
+                                           f'a solution from the posture exists but jumps by '
+                                           f'{abs(q2[j] - q_prev[j]):.2f} rad on joint {self.arm.joint_names[j]} '
+                                           f'(the path leaves this IK branch)')
+                q, pos, rot = q2, pos2, rot2
             if failure is not None:
                 return PathIKResult(q_out[:k], p_err[:k], r_err[:k], iters[:k], failure)
             q_out[k], p_err[k], r_err[k], iters[k] = q, pos, rot, it

@@ -98,6 +98,7 @@ class SimArm(Node):
         self._lock = threading.Lock()
         self._pending = None
         self.commands_received = 0
+        self.error: str | None = None
         self.trajectory_start_s: float | None = None     # simulation time at which the last command started
         self.stamp0 = self.get_clock().now()
         self.pub = self.create_publisher(JointState, '/joint_states', QoSProfile(
@@ -131,6 +132,13 @@ class SimArm(Node):
             self._pending = (t, q, qd, start_s)
 
     def _run(self):
+        try:
+            self._simulate()
+        except RuntimeError as exc:          # the simulation diverged: say so and stop publishing
+            self.error = str(exc)
+            self.get_logger().error(f'simulation stopped: {exc}')
+
+    def _simulate(self):
         f = self.follower
         period = 1.0 / self.rate_hz
         wall0 = time.monotonic()
