@@ -43,7 +43,8 @@ class Probe:
         self.node.create_subscription(JointTrajectory, '/arm_controller/joint_trajectory', self.commands.append,
                                       RELIABLE)
         self.node.create_subscription(DiagnosticArray, '/arm_command_bridge/status', self.statuses.append, LATCHED)
-        self.node.create_subscription(JointState, '/joint_states', self.joint_states.append, RELIABLE)
+        self.node.create_subscription(JointState, '/joint_states', self.joint_states.append, QoSProfile(
+            depth=5000, reliability=ReliabilityPolicy.RELIABLE))
         self.path_pub = self.node.create_publisher(Path, '/gripper_trajectory', RELIABLE)
 
 
@@ -131,3 +132,19 @@ def test_sim_arm_executes_the_bridges_trajectory_and_follows_the_path(ros_contex
     assert error.max() < 5e-3
     # the efforts are the actuator torques: holding the arm against gravity takes tens of N m at the shoulder
     assert np.max(np.abs(probe.joint_states[-1].effort)) > 5.0
+
+
+def test_sim_arm_holds_the_experiments_loop_at_1khz(ros_context, wait_for):
+    from pathlib import Path
+    experiment = Path(__file__).resolve().parents[4] / 'bags' / 'example_loop12' / 'experiment.yaml'
+    if not experiment.exists():
+        pytest.skip('example experiment not in this checkout')
+    probe = Probe(ros_context)
+    sim = ros_context.add(SimArm(context=ros_context.context, parameter_overrides=[
+        Parameter('experiment', value=str(experiment)), Parameter('hold_object', value=True),
+        Parameter('rate_hz', value=1000.0), Parameter('effort_bias', value=[0.25])]))
+    assert wait_for(lambda: len(probe.joint_states) >= 300, timeout_s=20)
+    stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in list(probe.joint_states)[:300]])
+    assert np.allclose(np.diff(stamps), 1e-3, atol=2e-6)
+    assert sim.follower.sim.has_loop and sim.follower.sim.weld_residual()[0] < 1e-5
+    assert list(probe.joint_states[0].name) == sim.names and len(probe.joint_states[0].effort) == 7
