@@ -94,7 +94,8 @@ def test_bridge_rejects_a_pose_beyond_a_joint_limit_from_a_csv_parameter(ros_con
     write_gripper_csv(tmp_path / 'g.csv', short_path())
     probe = Probe(ros_context)
     bridge = ros_context.add(ArmCommandBridge(context=ros_context.context, parameter_overrides=[
-        Parameter('urdf', value=str(urdf)), Parameter('trajectory_csv', value=str(tmp_path / 'g.csv'))]))
+        Parameter('urdf', value=str(urdf)), Parameter('trajectory_csv', value=str(tmp_path / 'g.csv')),
+        Parameter('wait_for_arm', value=0.2)]))
     assert wait_for(lambda: len(probe.statuses) >= 1)      # the latched status of the CSV plan
     status = probe.statuses[-1].status[0]
     assert status.level == DiagnosticStatus.ERROR and 'right_e1' in status.message and 'beyond its limits' in \
@@ -108,10 +109,11 @@ def test_sim_arm_executes_the_bridges_trajectory_and_follows_the_path(ros_contex
     bridge = ros_context.add(ArmCommandBridge(context=ros_context.context))
     probe = Probe(ros_context)
     assert wait_for(lambda: bridge.current_q is not None and probe.path_pub.get_subscription_count() >= 1
-                    and bridge.cmd_pub.get_subscription_count() >= 2)      # the probe and sim_arm
+                    and bridge.cmd_pub.get_subscription_count() >= 2, timeout_s=20)      # the probe and sim_arm
     path = short_path(n=20, duration_s=2.0)
     probe.path_pub.publish(path_msg(path, probe.node))
-    assert wait_for(lambda: len(probe.commands) == 1 and sim.trajectory_done, timeout_s=20)
+    assert wait_for(lambda: len(probe.commands) == 1 and sim.trajectory_done, timeout_s=30), \
+        (len(probe.commands), sim.commands_received, sim.sim_time_s, sim.error, probe.statuses[-1:])
     status = {kv.key: kv.value for kv in probe.statuses[-1].status[0].values}
     lead_in, scale = float(status['lead_in_s']), float(status['time_scale'])
     t0 = sim.trajectory_start_s + lead_in

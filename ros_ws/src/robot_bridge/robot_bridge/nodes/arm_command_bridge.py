@@ -14,7 +14,8 @@ Parameters
   position_tolerance (m, default 1e-4), orientation_tolerance (rad, default 1e-3)
   lead_in_s (double): time to reach the first pose when the arm's state is unknown (default 2 s); with a
             /joint_states reading it is computed from the limits
-  trajectory_csv (string): plan this CSV once at start instead of (before) listening on /gripper_trajectory
+  trajectory_csv (string): also plan this CSV once, as soon as a command subscriber and /joint_states are there
+            (or after wait_for_arm seconds, default 5)
 
 A path is validated, solved and timed completely before anything is published; a rejected path publishes nothing.
 Stamps: path time is header-relative (pose stamp - first pose stamp); all-zero stamps are an error (not increasing).
@@ -98,6 +99,8 @@ class ArmCommandBridge(Node):
             config.acceleration_limits_rad_s2 = []
         self.default_lead_in_s = float(param('lead_in_s', 2.0, 'time to the first pose if the arm state is unknown'))
         csv_path = param('trajectory_csv', '', 'gripper trajectory CSV to plan once at start')
+        self.wait_for_arm_s = float(param('wait_for_arm', 5.0, 'with trajectory_csv: seconds to wait for a '
+                                          'command subscriber and /joint_states before planning'))
         self.planner = ArmCommandPlanner(config)          # raises ValueError on a bad URDF/config
         self._lock = threading.Lock()
         self._joint_index = {n: i for i, n in enumerate(self.planner.arm.joint_names)}
@@ -107,13 +110,25 @@ class ArmCommandBridge(Node):
         self.status_pub = self.create_publisher(DiagnosticArray, '~/status', LATCHED)
         self.create_subscription(JointState, '/joint_states', self._on_joint_states, qos_profile_sensor_data)
         self.create_subscription(Path, PATH_TOPIC, self._on_path, RELIABLE)
+        self._csv = None
         if csv_path:
             try:
-                path = read_gripper_csv(csv_path)
+                self._csv = (read_gripper_csv(csv_path), csv_path)
             except ValueError as exc:
                 self._status(DiagnosticStatus.ERROR, f'cannot read {csv_path}: {exc}', {})
                 raise
-            self.plan_and_publish(path, source=csv_path)
+            self._csv_deadline = self.get_clock().now().nanoseconds * 1e-9 + self.wait_for_arm_s
+            self._csv_timer = self.create_timer(0.05, self._plan_csv_when_ready)
+
+    def _plan_csv_when_ready(self):
+        """The CSV is planned once a command subscriber and the arm's joint states are there (or after
+        wait_for_arm seconds), so that the IK starts from the measured pose and the command is not lost."""
+        ready = self.cmd_pub.get_subscription_count() > 0 and self.current_q is not None
+        if not ready and self.get_clock().now().nanoseconds * 1e-9 < self._csv_deadline:
+            return
+        self._csv_timer.cancel()
+        path, source = self._csv
+        self.plan_and_publish(path, source=source)
 
     def _on_joint_states(self, msg: JointState):
         if len(msg.position) != len(msg.name):
