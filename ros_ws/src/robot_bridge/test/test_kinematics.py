@@ -87,13 +87,11 @@ def test_rejections_name_the_first_bad_pose(planner):
     assert exc.index == 12 and 'unreachable' in str(exc) and exc.xyz == pytest.approx(path.xyz_m[12].tolist())
 
 
-def test_a_pose_that_needs_a_joint_beyond_its_limit_is_rejected_naming_the_joint():
+def test_a_pose_that_needs_a_joint_beyond_its_limit_is_rejected_naming_the_joint(tmp_path):
     """Lower right_e1's upper limit (URDF edit) below what the path needs: reachable without limits, not with."""
-    urdf_text = default_urdf_path().read_text().replace('lower="-0.05" upper="2.618"', 'lower="-0.05" upper="0.9"')
-    import tempfile
-    with tempfile.NamedTemporaryFile('w', suffix='.urdf', delete=False) as f:
-        f.write(urdf_text)
-    planner = ArmCommandPlanner(BridgeConfig(urdf=f.name))
+    urdf = tmp_path / 'narrow_elbow.urdf'
+    urdf.write_text(default_urdf_path().read_text().replace('lower="-0.05" upper="2.618"', 'lower="-0.05" upper="0.9"'))
+    planner = ArmCommandPlanner(BridgeConfig(urdf=str(urdf)))
     exc = _rejected(planner, _short_path())
     assert 'right_e1' in str(exc) and 'beyond its limits' in str(exc)
 

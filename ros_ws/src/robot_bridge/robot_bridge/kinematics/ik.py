@@ -97,7 +97,8 @@ class PathIK:
         s, arm = self.settings, self.arm
         lo, hi = (arm.limits.lower, arm.limits.upper) if limits else (-np.inf, np.inf)
         q = np.clip(np.asarray(q0, dtype=float), lo, hi)
-        stop_p, stop_r = s.position_tolerance_m * s.convergence_factor, s.orientation_tolerance_rad * s.convergence_factor
+        stop_p = s.position_tolerance_m * s.convergence_factor
+        stop_r = s.orientation_tolerance_rad * s.convergence_factor
         err, pos, rot, current = self._errors(q, target)
         it = 0
         while it < s.max_iterations and not (pos < stop_p and rot < stop_r):
@@ -126,7 +127,8 @@ class PathIK:
                 j = int(np.argmax(over))
                 name = self.arm.joint_names[j]
                 return (f'needs joint {name} at {q_free[j]:.3f} rad, beyond its limits [{lo[j]:.3f}, {hi[j]:.3f}] '
-                        f'(within the limits the closest pose misses by {pos * 1e3:.1f} mm / {np.degrees(rot):.1f} deg)')
+                        f'(within the limits the closest pose misses by {pos * 1e3:.1f} mm / '
+                        f'{np.degrees(rot):.1f} deg)')
         return (f'unreachable: the closest pose the arm reaches misses by {pos * 1e3:.1f} mm and '
                 f'{np.degrees(rot):.1f} deg (tolerance {self.settings.position_tolerance_m * 1e3:.2g} mm, '
                 f'{np.degrees(self.settings.orientation_tolerance_rad):.2g} deg)')

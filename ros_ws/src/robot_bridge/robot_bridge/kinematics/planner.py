@@ -13,15 +13,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robot_bridge.geometry import rpy_matrix
+from robot_bridge.sim.motion import BAXTER_RIGHT_NOMINAL_RAD
 
 from .arm import BAXTER_RIGHT_JOINTS, ArmKinematics, default_urdf_path
 from .gripper_path import GripperPath, PathRejected
 from .ik import IKSettings, PathIK
 from .timing import LimitViolation, TimedJointTrajectory, time_parameterise
 
-# Baxter's right arm, gripper pointing down in front of the robot (the simulator's nominal pose too).
-BAXTER_RIGHT_POSTURE_RAD = (0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0)
-DEFAULT_ACCELERATION_TIME_S = 0.5
+DEFAULT_ACCELERATION_TIME_S = 0.5   # without explicit limits: a joint may reach its top speed in this time
 # The default scene (a parameter: set your own): the table origin 0.5 m in front of and 0.5 m to the right of
 # Baxter's base frame, 0.7 m below it, its x axis pointing back at the robot. Chosen on a grid of table poses as one
 # under which the most test paths are within reach: synthetic deployment paths (gripper 0.3-0.9 m above the table,
@@ -29,7 +28,7 @@ DEFAULT_ACCELERATION_TIME_S = 0.5
 # (benchmarks/ik_speed.py). Its circle and letter A turn the gripper about the rod's axis by more than Baxter's
 # wrist roll (right_w2, +-175 deg) allows under any table pose tried.
 DEFAULT_TABLE_XYZ_M = (0.5, -0.5, -0.7)
-DEFAULT_TABLE_RPY_RAD = (0.0, 0.0, 3.141592653589793)   # without explicit limits: a joint may reach its top speed in this time
+DEFAULT_TABLE_RPY_RAD = (0.0, 0.0, 3.141592653589793)
 
 
 def pose_matrix(xyz, rpy) -> np.ndarray:
@@ -43,8 +42,9 @@ def pose_matrix(xyz, rpy) -> np.ndarray:
 class BridgeConfig:
     """Everything the bridge needs to know about the arm and the scene (SI units, rpy as in URDF).
 
-    table_xyz / table_rpy: the table frame in base_link (default: DEFAULT_TABLE_*). grasp_xyz / grasp_rpy: the gripper frame G in tip_link (the
-    default, identity, puts +z_G along Baxter's approach axis: right_gripper's +z points out between the fingers).
+    table_xyz / table_rpy: the table frame in base_link (default: DEFAULT_TABLE_*). grasp_xyz / grasp_rpy: the
+    gripper frame G in tip_link (the default, identity, puts +z_G along Baxter's approach axis: right_gripper's +z
+    points out between the fingers).
     velocity_scaling / acceleration_scaling: fractions of the limits to use. acceleration_limits_rad_s2: per joint
     (or one value; empty: the URDF velocity limit / 0.5 s, URDF has no acceleration limits). posture_rad: the
     null-space posture and the IK seed when the arm's state is unknown (empty: Baxter's nominal pose for Baxter's
@@ -121,7 +121,7 @@ class ArmCommandPlanner:
         posture = np.asarray(config.posture_rad, dtype=float)
         if posture.size == 0:
             if list(config.joints) == list(BAXTER_RIGHT_JOINTS):
-                posture = np.array(BAXTER_RIGHT_POSTURE_RAD)
+                posture = np.array(BAXTER_RIGHT_NOMINAL_RAD)
             else:
                 posture = np.where(np.isfinite(lim.lower) & np.isfinite(lim.upper), 0.5 * (lim.lower + lim.upper),
                                    np.clip(0.0, lim.lower, lim.upper))

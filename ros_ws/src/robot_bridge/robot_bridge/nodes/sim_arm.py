@@ -91,7 +91,7 @@ class SimArm(Node):
                                   np.array([0.0, 0.0, -9.81]))
         if hold_object and spec.loop is None:
             raise ValueError('hold_object needs an experiment YAML with an object')
-        self.follower = ArmFollower(spec, None if q0 == [0.0] and len(spec.arm.joints) > 1 else q0, effects, noise,
+        self.follower = ArmFollower(spec, None if q0 == [0.0] else q0, effects, noise,
                                     controller, with_object=hold_object, k_theta=k_theta, k_phi=k_phi,
                                     numerics=Numerics(timestep_s=timestep), seed=seed)
         self.names = self.follower.joint_names
