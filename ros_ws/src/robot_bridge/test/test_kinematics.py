@@ -86,6 +86,10 @@ def test_rejections_name_the_first_bad_pose(planner):
     exc = _rejected(planner, path)
     assert exc.index == 12 and 'unreachable' in str(exc) and exc.xyz == pytest.approx(path.xyz_m[12].tolist())
 
+    # this circle passes by a wrist singularity near its end: w0 would have to swing by more than a radian
+    exc = _rejected(planner, deployment_like_path(radius_m=0.10))
+    assert exc.index == 191 and 'singularity' in str(exc) and 'right_w0' in str(exc)
+
 
 def test_a_pose_that_needs_a_joint_beyond_its_limit_is_rejected_naming_the_joint(tmp_path):
     """Lower right_e1's upper limit (URDF edit) below what the path needs: reachable without limits, not with."""

@@ -157,6 +157,11 @@ class PathIK:
                                            f'{abs(q2[j] - q_prev[j]):.2f} rad on joint {self.arm.joint_names[j]} '
                                            f'(the path leaves this IK branch)')
                 q, pos, rot = q2, pos2, rot2
+            if failure is None and k and np.max(np.abs(q - q_prev)) > self.settings.max_jump_rad:
+                j = int(np.argmax(np.abs(q - q_prev)))
+                failure = IKFailure(k, f'joint {self.arm.joint_names[j]} would swing by {abs(q[j] - q_prev[j]):.2f} '
+                                       f'rad from the previous pose (more than {self.settings.max_jump_rad} rad): the '
+                                       f'path passes at or near a singularity of the arm')
             if failure is not None:
                 return PathIKResult(q_out[:k], p_err[:k], r_err[:k], iters[:k], failure)
             q_out[k], p_err[k], r_err[k], iters[k] = q, pos, rot, it
