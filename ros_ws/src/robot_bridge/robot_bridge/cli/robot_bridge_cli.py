@@ -70,10 +70,10 @@ def main(argv=None) -> int:
         print(json.dumps(summary, indent=2))
     else:
         print(f'{args.out}: {summary["poses"]} poses, {summary["duration_s"]:.2f} s; {summary["timing"]}\n'
-              f'IK tracking error: position max {summary["position_max_m"] * 1e3:.4f} mm, '
-              f'RMS {summary["position_rms_m"] * 1e3:.4f} mm; orientation max '
-              f'{np.degrees(summary["orientation_max_rad"]):.4f} deg, RMS '
-              f'{np.degrees(summary["orientation_rms_rad"]):.4f} deg; midway between poses '
+              f'IK tracking error: position max {summary["position_max_m"] * 1e3:.3g} mm, '
+              f'RMS {summary["position_rms_m"] * 1e3:.3g} mm; orientation max '
+              f'{np.degrees(summary["orientation_max_rad"]):.3g} deg, RMS '
+              f'{np.degrees(summary["orientation_rms_rad"]):.3g} deg; midway between poses '
               f'{summary["between_poses_max_m"] * 1e3:.2f} mm; IK {summary["wall_time_s"]["ik"]:.3f} s')
     return 0
 
