@@ -1,8 +1,8 @@
 """sim_arm: fake hardware, a MuJoCo arm from a URDF executing joint trajectories and publishing its joint states.
 
-Subscribes  /arm_controller/joint_trajectory (trajectory_msgs/JointTrajectory, RELIABLE): joint names in any order
-            (all of the arm's joints; others are an error, logged); time_from_start from the message's header stamp
-            (0: on receipt)
+Subscribes  /arm_controller/joint_trajectory (trajectory_msgs/JointTrajectory, RELIABLE): joint names in any order,
+            every arm joint present (else the command is ignored and logged; extra names are ignored);
+            time_from_start counts from the header stamp (0: on receipt)
 Publishes   /joint_states (sensor_msgs/JointState, RELIABLE, so best-effort and reliable subscribers both match):
             position, velocity, effort = the actuator torque as a joint torque sensor reads it (CONTRACTS.md
             section 1), stamped with simulation time mapped onto the clock at start
