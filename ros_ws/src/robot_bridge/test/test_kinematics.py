@@ -34,6 +34,15 @@ def test_ik_follows_reachable_deployment_paths_to_a_tenth_of_a_millimetre(planne
         assert np.all(plan.trajectory.q >= lim.lower) and np.all(plan.trajectory.q <= lim.upper)
 
 
+def test_executed_path_of_the_planned_joints_is_the_requested_path(planner):
+    path = _short_path()
+    plan = planner.plan(path)
+    back = planner.executed_path(path.t_s, plan.trajectory.q)
+    assert np.max(np.abs(back.xyz_m - path.xyz_m)) < 1e-4
+    dots = np.abs(np.sum(back.quat_xyzw * path.quat_xyzw, axis=1))        # q and -q are the same rotation
+    assert np.all(dots > 1.0 - 1e-6)
+
+
 def test_pinocchio_fk_matches_mujoco_fk_of_the_same_urdf():
     urdf = default_urdf_path()
     arm = ArmKinematics(urdf, 'base', 'right_gripper', BAXTER_RIGHT_JOINTS)

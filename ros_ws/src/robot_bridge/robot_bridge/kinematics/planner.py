@@ -135,6 +135,13 @@ class ArmCommandPlanner:
         """(K, 4, 4) gripper poses in base_link."""
         return self.table @ path.transforms()
 
+    def executed_path(self, t_s, q) -> GripperPath:
+        """The gripper path (table frame, CONTRACTS.md section 4) that joint positions q (K, n; e.g. measured joint
+        states in the bridge's joint order) at times t_s (K,) put the gripper through: forward kinematics."""
+        to_table = np.linalg.inv(self.table)
+        poses = np.array([to_table @ self.arm.gripper_pose(qk) for qk in np.atleast_2d(q)])
+        return GripperPath.from_transforms(t_s, poses)
+
     def plan(self, path: GripperPath, q_start=None) -> JointPlan:
         """Plan a validated path from q_start (the arm's current joints; None: the posture). Raises PathRejected."""
         wall = {}
