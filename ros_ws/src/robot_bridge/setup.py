@@ -21,6 +21,9 @@ setup(
         'console_scripts': [
             'bag_player = robot_bridge.nodes.bag_player:main',
             'bag-tools = robot_bridge.cli.bag_tools:main',
+            'robot-bridge = robot_bridge.cli.robot_bridge_cli:main',
+            'arm_command_bridge = robot_bridge.nodes.arm_command_bridge:main',
+            'sim_arm = robot_bridge.nodes.sim_arm:main',
         ],
     },
 )

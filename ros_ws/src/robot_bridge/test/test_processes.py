@@ -100,3 +100,38 @@ def test_player_stopped_mid_replay_exits_cleanly(tmp_path, stop_signal):
     err = player.stderr.read()
     assert 'Traceback' not in err and 'RCLError' not in err and 'context is invalid' not in err, err
     assert 'stopped after' in err
+
+
+def test_sim_arm_and_bridge_as_processes_execute_a_csv_path(tmp_path, ros_context, wait_for):
+    """sim_arm and arm_command_bridge (trajectory_csv) started from their console scripts; this process watches
+    the bridge's status and /joint_states until the arm's gripper reaches the path's last pose."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    from robot_bridge.kinematics.example_paths import deployment_like_path
+    from robot_bridge.kinematics.gripper_path import write_gripper_csv
+    from robot_bridge.kinematics.planner import ArmCommandPlanner, BridgeConfig
+
+    path = deployment_like_path(n_poses=10, duration_s=1.0, radius_m=0.05, height_m=(0.35, 0.4), max_tilt_rad=0.2)
+    write_gripper_csv(tmp_path / 'g.csv', path)
+    planner = ArmCommandPlanner(BridgeConfig())
+    goal = planner.to_base(path)[-1, :3, 3]
+    observer = ros_context.add(Node('observer', context=ros_context.context))
+    statuses, latest = [], {}
+    observer.create_subscription(DiagnosticArray, '/arm_command_bridge/status', statuses.append, QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    observer.create_subscription(JointState, '/joint_states', lambda m: latest.update(q=np.array(m.position)), 10)
+    procs = [start('sim_arm', 'real_time_factor:=2.0'),
+             start('arm_command_bridge', f'trajectory_csv:={tmp_path / "g.csv"}', 'wait_for_arm:=30.0')]
+    try:
+        assert wait_for(lambda: statuses, timeout_s=40)
+        assert statuses[-1].status[0].level == DiagnosticStatus.OK, statuses[-1].status[0].message
+        assert wait_for(lambda: 'q' in latest and np.linalg.norm(
+            planner.arm.gripper_positions(latest['q'])[0] - goal) < 2e-3, timeout_s=30)
+    finally:
+        for p in procs:
+            p.send_signal(signal.SIGINT)
+        codes = [p.wait(timeout=20) for p in procs]
+    assert codes == [0, 0], [p.stderr.read() for p in procs]
