@@ -9,6 +9,9 @@
    flex-ident identify --diagnose finds it, identifies it with the springs and reports the error before and after.
 5. rod-deploy perceives a drawn pattern (a synthetic pen stroke of known centreline) into an ordered path in metres.
 6. rod-deploy solves the optimal grasp at the published test point (ls_bar 13.68, ks_bar 2087, kappa_bar 0.1).
+7. rod-deploy plans, from an image of a drawn circle, the gripper trajectory that lays the paper's rod #3 along it
+   (neural controller, Alg. 4) and the intuitive baseline's, simulates both deployments in our DER and scores them
+   (Eq. 17) (``--quick``: plans only).
 Outputs go to demo_out/ (overwritten each run).
 """
 import argparse
@@ -68,6 +71,7 @@ def main():
                     help='example folder with bag/ and experiment.yaml')
     ap.add_argument('--out', default=str(ROOT / 'demo_out'))
     ap.add_argument('--rate', type=float, default=5.0, help='replay speed factor')
+    ap.add_argument('--quick', action='store_true', help='step 7 plans but does not simulate the deployments')
     args = ap.parse_args()
     from robot_bridge.bagio.raw import iter_raw_messages
     from robot_bridge.cli import bag_tools
@@ -156,6 +160,28 @@ def main():
 
     step('6. optimal grasp for the published test point (rod-deploy grasp)')
     status = rod_deploy_main(['grasp', '--ls', '13.68', '--ks', '2087', '--kappa', '0.1'])
+    if status != 0:
+        return status
+
+    step('7. lay a rod along a drawn circle (rod-deploy plan / simulate / evaluate, from the image)')
+    image = draw_strokes((600, 600), [example_curves(600)['circle']], [6.0], [(40, 40, 40)], gradient=0.25,
+                         noise_std=3.0, blur_sigma=0.8)
+    cv2.imwrite(str(out / 'drawn_circle.png'), image)
+    (out / 'rod.yaml').write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    for method in ('nn', 'intuitive'):
+        status = rod_deploy_main(['plan', '--pattern', str(out / 'drawn_circle.png'), '--m-per-px', '0.0005',
+                                  '--rod', str(out / 'rod.yaml'),
+                                  '--method', method, '--out', str(out / f'traj_{method}.csv'),
+                                  '--plot', str(out / f'plan_{method}.png')])
+        if status != 0 or args.quick:
+            continue
+        status = rod_deploy_main(['simulate', '--traj', str(out / f'traj_{method}.csv'), '--rod', str(out / 'rod.yaml'),
+                                  '--out', str(out / f'deployed_{method}.csv'), '--edge-length', '0.01',
+                                  '--plot', str(out / f'deployed_{method}.png'), '--quiet'])
+        if status != 0:
+            return status
+        status = rod_deploy_main(['evaluate', '--pattern', str(out / 'drawn_circle.png'), '--m-per-px', '0.0005',
+                                  '--deployed', str(out / f'deployed_{method}.csv')])
     return status
 
 

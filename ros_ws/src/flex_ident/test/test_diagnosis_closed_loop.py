@@ -112,3 +112,22 @@ def test_torque_sensor_delay_is_found_and_measured(model, recordings):
     assert [e['key'] for e in added] == ['time_offset']
     assert added[0]['parameters']['delay_s'] == pytest.approx(0.03, abs=0.005)
     assert 'torque sensors lag' in added[0]['evidence']
+
+
+@pytest.mark.parametrize('effects, key, parameter, value, tol', [
+    ({'arm_coulomb_nm': 0.3}, 'arm_coulomb', 'f_arm', 0.3, 0.1),
+    ({'effort_gain': 0.9}, 'torque_gain', 'torque_sensor_gain', 0.9, 0.03),
+    ({'effort_bias_nm': [0.4, -0.3, 0.0, 0.3, 0.0, 0.0, 0.0]}, 'torque_bias', 'b_right_s0', 0.4, 0.2),
+])
+def test_arm_friction_torque_gain_and_bias_are_named(model, effects, key, parameter, value, tol):
+    """End to end on short independent (MuJoCo) recordings, each with one effect the experiment does not declare."""
+    from robot_bridge.sim.mujoco_loop import simulate_loop_experiment
+    rec = simulate_loop_experiment(str(EXPERIMENT), duration_s=4.0, motion=SHORT_MOTION, seed=5, effects=effects,
+                                   noise={'position_rad': 2e-4, 'velocity_rad_s': 5e-3, 'effort_nm': 0.1})
+    problem = _problem(model, rec)
+    fit = optimize(problem, np.array([4.0, 2.5]), 'lm')
+    added = diagnose(problem, fit.params)['effects_added']
+    assert added and added[0]['key'] == key, [e['key'] for e in added]
+    assert added[0]['parameters'][parameter] == pytest.approx(value, abs=tol)
+    k = added[-1]['declared_parameters_after']
+    assert k['k_theta'] == pytest.approx(5.0, rel=0.05) and k['k_phi'] == pytest.approx(3.0, rel=0.05)

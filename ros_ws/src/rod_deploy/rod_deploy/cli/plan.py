@@ -15,6 +15,7 @@ exit 2, and no file.
 from __future__ import annotations
 
 import json
+import sys
 
 from rod_deploy.cli.main import CliError
 
@@ -77,4 +78,9 @@ def run(args) -> int:
         plot_plan(args.plot, plan)
         summary['plot'] = str(args.plot)
     print(json.dumps(summary))
+    if summary['max_abs_kappa_bar'] > 1.0:
+        print(f'rod-deploy plan: note: the pattern bends with |kappa_bar| up to {summary["max_abs_kappa_bar"]:.2g} '
+              f'(radius {rod.gravito_bending_length_m / summary["max_abs_kappa_bar"]:.3g} m); in our simulations '
+              'deployments lose accuracy where |kappa_bar| > 1 (radius < L_gb): consider --smoothing or a larger '
+              'drawing', file=sys.stderr)
     return 0

@@ -1,0 +1,74 @@
+"""Speed of planning a deployment trajectory: a 200-node pattern with the network, in-process and as the whole
+`rod-deploy plan` process (start-up included); medians.
+
+    python benchmarks/planning_speed.py [--repeats 20] [--commit-results]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from results_dir import add_results_argument, results_path
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+
+
+def spiral(n=200, step=0.005):
+    th = np.linspace(0, 3 * np.pi, 4000)
+    r = 0.15 - 0.03 * th / np.pi
+    xy = np.column_stack([r * np.cos(th), r * np.sin(th)])
+    s = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    u = np.arange(n) * step
+    return np.column_stack([np.interp(u, s, xy[:, 0]), np.interp(u, s, xy[:, 1])])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--repeats', type=int, default=20)
+    add_results_argument(ap)
+    args = ap.parse_args()
+    rod = rod_description_from_dict({'length': 1.2, 'radius': 0.002, 'L_gb': 0.034})
+    pts = spiral()
+    rows = []
+    for method in ('nn', 'intuitive'):
+        plan_trajectory(pts, rod, PlannerSettings(method=method))              # warm (imports, weights)
+        times = []
+        for _ in range(args.repeats):
+            t0 = time.perf_counter()
+            plan = plan_trajectory(pts, rod, PlannerSettings(method=method))
+            times.append(time.perf_counter() - t0)
+        rows.append((f'in-process, {method}', len(plan.pattern.s), 1000 * float(np.median(times))))
+    t0 = time.perf_counter()
+    plan_trajectory(pts[:60], rod, PlannerSettings(method='numeric'))
+    rows.append(('in-process, numeric (60 nodes)', 60, 1000 * (time.perf_counter() - t0)))
+    with tempfile.TemporaryDirectory() as d:
+        np.savetxt(Path(d) / 'p.txt', pts)
+        (Path(d) / 'rod.yaml').write_text('length: 1.2\nradius: 0.002\nL_gb: 0.034\n')
+        times = []
+        for _ in range(max(3, args.repeats // 4)):
+            t0 = time.perf_counter()
+            subprocess.run([str(Path(sys.executable).parent / 'rod-deploy'), 'plan', '--pattern', str(Path(d) / 'p.txt'),
+                            '--rod', str(Path(d) / 'rod.yaml'), '--out', str(Path(d) / 't.csv')], check=True,
+                           capture_output=True)
+            times.append(time.perf_counter() - t0)
+        rows.append(('whole `rod-deploy plan` process, nn', len(plan.pattern.s), 1000 * float(np.median(times))))
+    lines = ['# Planning speed (`python benchmarks/planning_speed.py`)', '',
+             f'Machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; '
+             f'a 200-node spiral (5 mm steps), rod L_gb 3.4 cm; medians of {args.repeats} runs (targets: 50 ms '
+             'in-process with the network, 5 s for the whole process; the paper: about 0.4 s).', '',
+             '| what | nodes | median ms |', '|---|---|---|'] + [f'| {a} | {b} | {c:.1f} |' for a, b, c in rows]
+    out = results_path(args, 'planning_speed.md')
+    out.write_text('\n'.join(lines) + '\n')
+    print('\n'.join(lines))
+
+
+if __name__ == '__main__':
+    main()
