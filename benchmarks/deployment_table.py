@@ -38,15 +38,14 @@ RODS = {1: {'length': 0.875, 'radius': 0.0016, 'L_gb': 0.018},
 def own_patterns():
     """Shapes of our own, in metres, starting at the origin."""
     out = {}
-    th = np.linspace(0, 3.2 * np.pi, 400)
-    r = 0.16 - 0.035 * th / np.pi
+    th = np.linspace(0, 2.2 * np.pi, 400)
+    r = 0.11 - 0.02 * th / np.pi
     out['spiral'] = np.column_stack([r * np.cos(th) - r[0], r * np.sin(th)])
-    t = np.linspace(0, 1, 300)
-    top = np.column_stack([0.09 * np.cos(np.pi * (1 - t[:150] * 1.25)), 0.09 * np.sin(np.pi * (1 - t[:150] * 1.25))])
-    a = top[-1]
-    foot = np.column_stack([np.linspace(a[0], -0.09, 100), np.linspace(a[1], -0.2, 100)])
-    base = np.column_stack([np.linspace(-0.09, 0.1, 60), np.full(60, -0.2)])
-    digit2 = np.vstack([top, foot[1:], base[1:]])
+    from scipy.interpolate import splev, splprep
+    pts = np.array([[-0.08, 0.04], [-0.05, 0.1], [0.03, 0.12], [0.09, 0.07], [0.07, 0.0], [0.0, -0.06],
+                    [-0.06, -0.13], [0.02, -0.16], [0.11, -0.16]])
+    tck, _ = splprep(pts.T, s=0, k=3)
+    digit2 = np.column_stack(splev(np.linspace(0, 1, 400), tck))
     out['digit2'] = digit2 - digit2[0]
     s = np.linspace(0, 1, 400)
     out['letterS'] = np.column_stack([0.08 * np.sin(2 * np.pi * s) * (1 - 0.2 * s), -0.4 * s])

@@ -30,6 +30,9 @@ def register(subparsers):
     p.add_argument('--dt', type=float, default=0.05, help='time step [s] (default 0.05)')
     p.add_argument('--speed', type=float, default=0.01,
                    help='gripper speed of the replay [m/s] (default 0.01, quasi-static)')
+    p.add_argument('--hold-free-end', choices=('lead-in', 'always'), default='lead-in',
+                   help='pin the free end during the lead-in only (default, CONTRACTS.md) or throughout (the paper '
+                        'does so for a rope on the letter C: a free end cannot stay curved)')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     p.set_defaults(func=run)
 
@@ -57,7 +60,7 @@ def run(args) -> int:
         raise CliError(str(e)) from None
     start = tuple(pattern[0]) if pattern is not None else (tuple(args.start) if args.start else None)
     settings = SimulationSettings(edge_length_m=args.edge_length, dt_s=args.dt, max_gripper_speed_m_s=args.speed,
-                                  friction=args.friction, start_xy=start)
+                                  friction=args.friction, start_xy=start, hold_free_end=args.hold_free_end)
     bar = None
     if not args.quiet:
         from tqdm import tqdm

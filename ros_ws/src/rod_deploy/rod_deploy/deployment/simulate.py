@@ -6,7 +6,8 @@ two nodes follow the trajectory (positions interpolated linearly in time, orient
 d3 = -z_gripper) and so does the last edge's material frame (d1 = x_gripper), i.e. position, direction and twist.
 The free end is held in place during the lead-in - the straight line on which the gripper leaves the hanging pose
 (the planner's lead-in, or the straight line to the first pose of a trajectory that starts elsewhere) - and released
-after it. The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+after it (``hold_free_end='always'`` keeps it pinned, as the paper does for a rope on a pattern whose start is curved:
+a free end carries no moment, so it cannot stay curved). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
 The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
@@ -50,6 +51,7 @@ class SimulationSettings:
     contact_tolerance_m: float = 0.0   # a node lies on the table if z <= radius + this (contact force on)
     hold_twist: bool = True          # the gripper also holds the last edge's twist (d1 = x_gripper)
     friction_velocity_m_s: float = 1e-4   # regularisation of Coulomb friction (creep speed scale)
+    hold_free_end: str = 'lead-in'   # 'lead-in' (CONTRACTS.md) or 'always' (the paper pins it for the rope's C)
 
 
 @dataclass
@@ -110,6 +112,8 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
                         progress=None) -> DeploymentResult:
     """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion)."""
     settings = settings or SimulationSettings()
+    if settings.hold_free_end not in ('lead-in', 'always'):
+        raise DeploymentError(f"hold_free_end must be 'lead-in' or 'always', got {settings.hold_free_end!r}")
     t = np.asarray(t, float)
     position = np.asarray(position, float)
     quaternion = np.asarray(quaternion, float)
@@ -206,7 +210,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     path = []
     for k in range(steps):
         now = (k + 1) * settings.dt_s
-        if hold['on'] and now > t_release:
+        if hold['on'] and now > t_release and settings.hold_free_end != 'always':
             hold['on'] = False
             del rod_model._prescribed[tuple(free_end.tolist())]
             rod_model.fixed[free_end] = False
