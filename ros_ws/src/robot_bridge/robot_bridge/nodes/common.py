@@ -125,3 +125,39 @@ def run_node(make_node, args=None, until=None) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return int(getattr(node, 'exit_code', 0) or 0)
+
+
+class LatestMessageWorker:
+    """Hands the latest message to ``process(msg)`` in a worker thread, so slow processing never blocks a
+    subscription; a message arriving while one is processed replaces any queued one (only the newest request
+    counts). ``submit`` is the subscription callback; ``close`` stops the thread."""
+
+    def __init__(self, process, name='worker'):
+        import threading
+        self._process = process
+        self._pending = None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name=name)
+        self._thread.start()
+
+    def submit(self, msg):
+        with self._lock:
+            self._pending = msg
+        self._wake.set()
+
+    def _run(self):
+        while not self._stop.is_set():
+            if not self._wake.wait(timeout=0.1):
+                continue
+            self._wake.clear()
+            with self._lock:
+                msg, self._pending = self._pending, None
+            if msg is not None:
+                self._process(msg)
+
+    def close(self, timeout_s=30.0):
+        self._stop.set()
+        self._wake.set()
+        self._thread.join(timeout=timeout_s)

@@ -19,8 +19,6 @@ Parameters
 """
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
@@ -30,7 +28,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 
-from robot_bridge.nodes.common import declare_parameter, non_negative, positive, run_node
+from robot_bridge.nodes.common import LatestMessageWorker, declare_parameter, non_negative, positive, run_node
 from rod_deploy.planning.rod_description import load_rod_description, rod_description_from_dict
 from rod_deploy.planning.trajectory import METHODS, PlannerSettings, plan_trajectory
 
@@ -61,32 +59,12 @@ class GraspTrajectoryGenerator(Node):
         self.settings.validate()
         self.publisher = self.create_publisher(Path, '/gripper_trajectory', LATCHED)
         self.status = self.create_publisher(DiagnosticArray, '~/status', LATCHED)
-        self.subscription = self.create_subscription(Path, '/pattern', self._on_pattern, LATCHED)
         self.published = 0
         self.errors = 0
-        self._pending = None
-        self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stop = threading.Event()
-        self._worker = threading.Thread(target=self._work, daemon=True)
-        self._worker.start()
+        self._worker = LatestMessageWorker(self._process, 'planner')
+        self.subscription = self.create_subscription(Path, '/pattern', self._worker.submit, LATCHED)
         self.get_logger().info(f'waiting for patterns on /pattern (rod {self.rod.length_m:g} m, L_gb '
                                f'{self.rod.gravito_bending_length_m:g} m, method {method})')
-
-    def _on_pattern(self, msg: Path):
-        with self._lock:
-            self._pending = msg
-        self._wake.set()
-
-    def _work(self):
-        while not self._stop.is_set():
-            if not self._wake.wait(timeout=0.1):
-                continue
-            self._wake.clear()
-            with self._lock:
-                msg, self._pending = self._pending, None
-            if msg is not None:
-                self._process(msg)
 
     def _process(self, msg: Path):
         points = np.array([[p.pose.position.x, p.pose.position.y] for p in msg.poses], float).reshape(-1, 2)
@@ -126,9 +104,7 @@ class GraspTrajectoryGenerator(Node):
         self.status.publish(arr)
 
     def close(self):
-        self._stop.set()
-        self._wake.set()
-        self._worker.join(timeout=30)
+        self._worker.close()
 
 
 def trajectory_from_path(msg: Path):

@@ -20,7 +20,6 @@ Parameters
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
@@ -30,7 +29,8 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityP
                        qos_profile_sensor_data)
 from sensor_msgs.msg import Image
 
-from robot_bridge.nodes.common import FLOAT_LIST, declare_parameter, non_negative, positive, run_node
+from robot_bridge.nodes.common import (FLOAT_LIST, LatestMessageWorker, declare_parameter, non_negative, positive,
+                                       run_node)
 from rod_deploy.perception.pipeline import PerceptionConfig, PerceptionError, perceive
 from rod_deploy.perception.pixel_mapping import Homography, MappingError, ScaleOrigin
 
@@ -101,39 +101,21 @@ class PatternPerception(Node):
         request_qos = qos_profile_sensor_data if best_effort else QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE)
         self.publisher = self.create_publisher(Path, '/pattern', latched)
-        self.subscription = self.create_subscription(Image, '/deploy_request', self._on_image, request_qos)
         self.published = 0
         self.errors = 0
-        self._pending = None
-        self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stop = threading.Event()
-        self._worker = threading.Thread(target=self._work, daemon=True)
-        self._worker.start()
+        self._worker = LatestMessageWorker(self._handle, 'perception')
+        self.subscription = self.create_subscription(Image, '/deploy_request', self._worker.submit, request_qos)
         self.get_logger().info('waiting for images on /deploy_request; the pattern goes to /pattern')
 
-    def _on_image(self, msg: Image):
-        with self._lock:
-            self._pending = msg
-        self._wake.set()
-
-    def _work(self):
-        while not self._stop.is_set():
-            if not self._wake.wait(timeout=0.1):
-                continue
-            self._wake.clear()
-            with self._lock:
-                msg, self._pending = self._pending, None
-            if msg is None:
-                continue
-            try:
-                self._process(msg)
-            except (ValueError, MappingError) as exc:     # PerceptionError is a ValueError
-                self.errors += 1
-                self.get_logger().error(f'deployment request image rejected: {exc}')
-            except Exception as exc:                       # keep the node alive whatever the image
-                self.errors += 1
-                self.get_logger().error(f'perception failed on the request image: {type(exc).__name__}: {exc}')
+    def _handle(self, msg: Image):
+        try:
+            self._process(msg)
+        except (ValueError, MappingError) as exc:     # PerceptionError is a ValueError
+            self.errors += 1
+            self.get_logger().error(f'deployment request image rejected: {exc}')
+        except Exception as exc:                       # keep the node alive whatever the image
+            self.errors += 1
+            self.get_logger().error(f'perception failed on the request image: {type(exc).__name__}: {exc}')
 
     def _mapping(self, shape):
         if self.homography is not None:
@@ -182,9 +164,7 @@ class PatternPerception(Node):
         return path
 
     def close(self):
-        self._stop.set()
-        self._wake.set()
-        self._worker.join(timeout=10)
+        self._worker.close()
 
 
 def main(args=None):
