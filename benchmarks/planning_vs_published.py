@@ -265,6 +265,12 @@ def main():
         f'{max(t["median"] for t in tcheck):.2f} deg (median; worst node {max(t["max"] for t in tcheck):.1f} deg, '
         f'at the pattern ends where one-sided differences are crude).',
         '',
+        '"grasp model orientation": our grasp rotation against theirs in the local frame (theirs mirrored back for '
+        'left turns). "published self-consistency": the published quaternion against R*_i R*_0^T diag(1, -1, -1) '
+        'built from its own network outputs (R* = R_t R of Alg. 4): the published orientations are relative to the '
+        'first grasp, which is set to (1, 0, 0, 0); where this column is large the published file departs from its '
+        'own network outputs, so the orientation gaps there are not ours.',
+        '',
     ]
     md = results_path(args, 'planning_vs_published.md')
     md.write_text('\n'.join(lines) + '\n')
