@@ -119,6 +119,13 @@ def test_sim_arm_executes_the_bridges_trajectory_and_follows_the_path(ros_contex
     lead_in, scale = float(status['lead_in_s']), float(status['time_scale'])
     t0 = sim.trajectory_start_s + lead_in
     stamp0 = sim.stamp0.nanoseconds * 1e-9
+
+    def last_stamp():
+        m = probe.joint_states[-1]
+        return m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec - stamp0
+
+    # the sim is done when it has stepped past the trajectory; on a loaded machine the probe may still be receiving
+    assert wait_for(lambda: last_stamp() >= t0 + path.t_s[-1] * scale, timeout_s=30), (last_stamp(), t0)
     names = probe.joint_states[0].name
     samples = [(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec - stamp0, np.array(m.position))
                for m in list(probe.joint_states)]
