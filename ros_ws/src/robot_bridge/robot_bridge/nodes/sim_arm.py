@@ -44,6 +44,7 @@ from robot_bridge.sim.mujoco_loop import Controller, Effects, MeasurementNoise
 
 COMMAND_TOPIC = '/arm_controller/joint_trajectory'
 MAX_RATE_HZ = 1000.0
+MAX_LAG_S = 0.05        # behind the wall clock by more than this: fall back instead of catching up
 
 
 class SimArm(Node):
@@ -98,6 +99,7 @@ class SimArm(Node):
         self._lock = threading.Lock()
         self._pending = None
         self.commands_received = 0
+        self.slower_than_real_time = 0        # times the simulation fell behind the wall clock
         self.error: str | None = None
         self.trajectory_start_s: float | None = None     # simulation time at which the last command started
         self.stamp0 = self.get_clock().now()
@@ -162,6 +164,16 @@ class SimArm(Node):
             delay = wall0 + k * period / self.real_time_factor - time.monotonic()
             if delay > 0:
                 self._stop.wait(delay)
+            else:
+                # Behind the wall clock (a loaded machine): never try to catch up in a burst, which would hold the
+                # GIL in a tight loop and starve the executor that delivers /joint_states and the commands. The
+                # simulation runs slower than real time instead; the stamps are simulation time either way.
+                time.sleep(0)
+                if -delay > MAX_LAG_S:
+                    wall0 -= delay
+                    self.slower_than_real_time += 1
+                    self.get_logger().warn('simulating slower than real time (machine loaded); stamps stay '
+                                           'simulation time', throttle_duration_sec=10.0)
 
     @property
     def sim_time_s(self) -> float:
