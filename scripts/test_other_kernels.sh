@@ -13,8 +13,8 @@ kernels=("$@")
 mapfile -t files < <(grep -L -E 'rclpy|ros_context|ROS_DOMAIN_ID' ros_ws/src/*/test/test_*.py | grep -v process)
 status=0
 for kernel in "${kernels[@]}"; do
-  if ! OPENBLAS_CORETYPE=$kernel "$PY" -c \
-      'import numpy as np; a = np.random.rand(200, 200); np.linalg.solve(a + 200 * np.eye(200), a @ a)' \
+  if ! { OPENBLAS_CORETYPE=$kernel "$PY" -c \
+      'import numpy as np; a = np.random.rand(200, 200); np.linalg.solve(a + 200 * np.eye(200), a @ a)'; } \
       >/dev/null 2>&1; then
     echo "OpenBLAS kernel $kernel: skipped, this CPU cannot execute it"
     continue
