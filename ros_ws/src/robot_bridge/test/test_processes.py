@@ -44,7 +44,7 @@ def test_separate_processes_record_replay_and_close_cleanly(tmp_path, stop_signa
     logger = start('joint_state_logger', f'output:={tmp_path / "out"}', "topics:=['/joint_states']")
     player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=20.0')
     assert player.wait(timeout=60) == 0, player.stderr.read()
-    time.sleep(0.5)
+    time.sleep(2.0)          # the last messages in flight reach the logger (generous: a loaded machine is slow)
     logger.send_signal(stop_signal)
     assert logger.wait(timeout=20) == 0, logger.stderr.read()
     assert [m.data for m in iter_raw_messages(tmp_path / 'out')] == original
@@ -90,11 +90,16 @@ def test_player_with_corrupt_bag_prints_one_error_line(tmp_path):
 
 
 @pytest.mark.parametrize('stop_signal', [signal.SIGINT, signal.SIGTERM])
-def test_player_stopped_mid_replay_exits_cleanly(tmp_path, stop_signal):
+def test_player_stopped_mid_replay_exits_cleanly(tmp_path, stop_signal, ros_context, wait_for):
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
     make_bag(tmp_path / 'in', seconds=20.0)
-    player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=0.0')
-    time.sleep(2.0)
-    assert player.poll() is None                 # still replaying
+    observer = ros_context.add(Node('observer', context=ros_context.context))
+    received = []
+    observer.create_subscription(JointState, '/joint_states', received.append, 10)
+    player = start('bag_player', f'bag:={tmp_path / "in"}', 'wait_for_subscribers:=20.0')
+    # mid-replay for sure: the observer has received messages (a fixed sleep raced the start-up on a loaded machine)
+    assert wait_for(lambda: len(received) > 0 or player.poll() is not None, timeout_s=60) and player.poll() is None
     player.send_signal(stop_signal)
     assert player.wait(timeout=20) == 0
     err = player.stderr.read()

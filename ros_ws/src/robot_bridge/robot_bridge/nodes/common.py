@@ -118,6 +118,11 @@ def run_node(make_node, args=None, until=None) -> int:
         return 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # Ctrl-C or SIGTERM while the node was still starting: rclpy has shut the context down under it, and
+        # whatever call came next failed. That is a requested stop, not an error; anything else is re-raised.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             if hasattr(node, 'close'):
