@@ -36,7 +36,7 @@ def _cases(bag, tmp_path):
                                  'method': 'lbfgsb', 'diagnose': True, 'run_on_start': False},
         'pattern_perception': {'m_per_px': 0.002, 'origin_row': 10, 'origin_col': 5.5,
                                'homography': [1, 0, 0, 0, 1, 0, 0, 0, 1], 'step_px': 3,
-                               'object_index': 1, 'best_effort_input': True},
+                               'object_index': 1, 'best_effort_input': True, 'request_type': 'path'},
         'grasp_trajectory_generator': {'length': 0.89, 'radius': 0.002, 'L_gb': 0.034, 'method': 'numeric',
                                        'step_m': 0.004, 'smoothing_m': 0, 'speed_m_s': 0.02},
     }

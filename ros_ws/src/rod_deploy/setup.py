@@ -21,6 +21,7 @@ setup(
         'console_scripts': [
             'pattern_perception = rod_deploy.nodes.pattern_perception:main',
             'grasp_trajectory_generator = rod_deploy.nodes.grasp_trajectory_generator:main',
+            'deployment_monitor = rod_deploy.nodes.deployment_monitor:main',
             'rod-deploy = rod_deploy.cli.main:main',
         ],
     },

@@ -14,6 +14,9 @@ Parameters
   method (string)       optimizer passed to the identification (default 'lm')
   diagnose (bool)       also run the closed loop: find, add and identify effects the model lacks (default false)
   run_on_start (bool)   start a job with the parameters as soon as the node is up (default false)
+  recorded_topic (string) identify every bag announced on this topic (std_msgs/String JSON {"bag": ...}, as
+                        joint_state_logger publishes on /joint_state_logger/recorded when it closes a bag), with
+                        the other parameters; default '' (off)
 Publishes
   /identification/status (diagnostic_msgs/DiagnosticArray)  progress (stage, iteration, cost, fraction) while a job
                         runs, a 1 Hz heartbeat otherwise; level ERROR when a job fails
@@ -110,6 +113,10 @@ class StiffnessIdentifier(Node):
         self.run_srv = self.create_service(Trigger, '~/run', self._on_run)
         self._heartbeat = self.create_timer(HEARTBEAT_PERIOD_S, self._publish_heartbeat)
         self._start_timer = self.create_timer(0.0, self._start_from_parameters) if run_on_start else None
+        recorded_topic = declare_parameter(self, 'recorded_topic', '',
+                                           'identify every bag announced on this topic (JSON {"bag": ...})')
+        if recorded_topic:
+            self.recorded_sub = self.create_subscription(String, recorded_topic, self._on_recorded, LATCHED)
         self.get_logger().info(f'ready: publish JSON on {REQUEST_TOPIC} (e.g. with `flex-ident request`) or call '
                                f'{self.get_fully_qualified_name()}/run')
         if bag and experiment and not run_on_start:
@@ -152,6 +159,19 @@ class StiffnessIdentifier(Node):
         started, message = self.submit(request)
         response.success, response.message = started, message
         return response
+
+    def _on_recorded(self, msg: String):
+        values = self._parameter_values()
+        try:
+            data = json.loads(msg.data)
+            if not isinstance(data, dict) or not data.get('bag'):
+                raise RequestError(f'a recorded-bag announcement needs {{"bag": ...}}, got {msg.data[:200]!r}')
+            values['bag'] = str(data['bag'])
+            request = IdentificationRequest.from_values(**values)
+        except (ValueError, RequestError) as exc:      # json.JSONDecodeError is a ValueError
+            self._report_error(RequestError(str(exc)), values)
+            return
+        self.submit(request)
 
     def _start_from_parameters(self):
         self._start_timer.cancel()
