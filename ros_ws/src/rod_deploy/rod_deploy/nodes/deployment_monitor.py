@@ -60,7 +60,8 @@ RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=Rel
 JOINT_STATES_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
 STAGE_OF_NODE = {'/pattern_perception/status': 'perception', '/grasp_trajectory_generator/status': 'planning',
                  '/arm_command_bridge/status': 'arm_command'}
-FIT_SEARCH_S = 0.5          # the command's start on the joint-state clock is searched this far around the guess
+REACHED_RAD = 2e-3          # the arm is at the command's last point when every joint is this close ...
+SETTLED_S = 0.3             # ... and the joint states go on this long after that (stamp time)
 MAX_JOINT_RMS_RAD = 0.05    # measured vs commanded joints beyond this: the arm did not follow the command
 
 
@@ -194,12 +195,30 @@ class DeploymentMonitor(Node):
             r['last_joint_state'] = time.monotonic()
             if r['guess'] is None:
                 r['guess'] = sample[0]
-            if sample[0] < r['guess'] + r['command'][0][-1] + FIT_SEARCH_S + 0.1:
+            if not self._executed_locked(r, msg):
                 return
             r['stage'] = 'rod_simulation'
             r['t']['executed'] = time.monotonic()
             job = dict(r)
         self._worker.submit(job)
+
+    def _executed_locked(self, r: dict, msg: JointState) -> bool:
+        """Whether the joint states cover the command: the arm has been at the command's last point for
+        SETTLED_S (or, if it never gets there, the command is long overdue: the fit then says how far off it is)."""
+        tfs, q_cmd = r['command']
+        stamp = r['samples'][-1][0]
+        if stamp < r['guess'] + tfs[-1]:
+            return False
+        if r.get('reached') is None:
+            try:
+                q = joint_matrix([msg.name], [msg.position], self.planner.arm.joint_names)[0]
+            except ExecutionError:
+                return False
+            if np.max(np.abs(q - q_cmd[-1])) < REACHED_RAD:
+                r['reached'] = stamp
+        if r.get('reached') is not None:
+            return stamp >= r['reached'] + SETTLED_S
+        return stamp >= r['guess'] + 2.0 * tfs[-1] + 10.0
 
     def _check_timeouts(self):
         now = time.monotonic()
@@ -250,7 +269,7 @@ class DeploymentMonitor(Node):
         keep = np.concatenate([[True], np.diff(stamps) > 0])      # drop repeated stamps (a re-sent message)
         samples = [s for s, k in zip(r['samples'], keep) if k]
         q_meas = joint_matrix([s[1] for s in samples], [s[2] for s in samples], self.planner.arm.joint_names)
-        executed = executed_gripper_path(self.planner, stamps[keep], q_meas, tfs, q_cmd, r['guess'], FIT_SEARCH_S)
+        executed = executed_gripper_path(self.planner, stamps[keep], q_meas, tfs, q_cmd, r['guess'] - 0.2)
         if executed.joint_rms_rad > MAX_JOINT_RMS_RAD:
             raise ExecutionError(f'the arm did not follow the command: measured joints {executed.joint_rms_rad:.3f} '
                                  f'rad RMS from the commanded ones')
