@@ -188,9 +188,14 @@ def main(argv=None):
         t_request = time.monotonic()
         request_pub.publish(msg)
         print(f'  published {Path(args.image).name} ({msg.width} x {msg.height} px) on /deploy_request')
+        if wait(lambda: 'deployment' in results or (
+                sim.commands_received and (monitor._request or {}).get('stage') != 'execution'), 300,
+                'the arm to execute the trajectory', status=lambda: f'arm at {sim.sim_time_s:.1f} s simulated'):
+            executor.remove_node(sim)       # the arm's part is done: free the CPU for the rod and the identification
+            sim.close()
+            print(f'  the arm executed the trajectory ({sim.sim_time_s:.1f} s simulated); laying the rod along it')
         if not wait(lambda: 'deployment' in results, 600, 'the deployment result',
-                    status=lambda: f'stage {(monitor._request or {}).get("stage", "done")}, arm at '
-                                   f'{sim.sim_time_s:.1f} s simulated'):
+                    status=lambda: f'stage {(monitor._request or {}).get("stage", "done")}'):
             return fail('no deployment result')
         deployment = results['deployment']
         if 'error' in deployment:
