@@ -239,11 +239,11 @@ class DeploymentMonitor(Node):
         except (ExecutionError, ValueError) as exc:
             stage = 'execution' if isinstance(exc, ExecutionError) else 'rod_simulation'
             with self._lock:
-                self._fail_locked(stage, str(exc))
+                self._fail_locked(stage, str(exc), r=r)
             return
         except Exception as exc:       # noqa: BLE001 - every failure becomes a result, the node stays up
             with self._lock:
-                self._fail_locked('rod_simulation', f'{type(exc).__name__}: {exc}')
+                self._fail_locked('rod_simulation', f'{type(exc).__name__}: {exc}', r=r)
             return
         shape = Path()
         shape.header.frame_id = 'table'
@@ -308,8 +308,8 @@ class DeploymentMonitor(Node):
                  'arm_command_and_execution': ('trajectory', 'executed'), 'total': ('request', 'done')}
         return {k: round(t[b] - t[a], 3) for k, (a, b) in spans.items() if a in t and b in t}
 
-    def _fail_locked(self, stage: str, why: str, values: dict | None = None):
-        r = self._request
+    def _fail_locked(self, stage: str, why: str, values: dict | None = None, r: dict | None = None):
+        r = r or self._request
         result = {'request': r['id'] if r else None, 'error': why, 'stage': stage,
                   'timings_s': self._timings(r) if r else {}}
         if values:
@@ -324,7 +324,8 @@ class DeploymentMonitor(Node):
         self._publish_result_locked(summary)
 
     def _publish_result_locked(self, result: dict):
-        self._request = None
+        if self._request is not None and self._request['id'] == result['request']:
+            self._request = None          # (a request simulated in the worker may finish after a newer one opened)
         self.results.append(result)
         self.result_pub.publish(String(data=json.dumps(result, default=float)))
 
