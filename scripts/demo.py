@@ -42,7 +42,8 @@ ROD = {'length': 0.5, 'radius': 0.002, 'L_gb': 0.034}     # the paper's rod #3 m
 RECORDED_TOPICS = ['/joint_states', '/deploy_request', '/pattern', '/gripper_trajectory',
                    '/arm_controller/joint_trajectory', '/deployed_shape', '/deploy_result', '/deploy_markers',
                    '/pattern_perception/status', '/grasp_trajectory_generator/status', '/arm_command_bridge/status',
-                   '/identification/status', '/identification/result', '/joint_state_logger/recorded']
+                   '/identification/status', '/identification/result', '/identification/markers',
+                   '/joint_state_logger/recorded']
 IDENTIFICATION_PLOTS = ['cost_vs_iteration.png', 'end_effector_path.png', 'residual_over_time.png']
 
 

@@ -33,4 +33,5 @@ def test_demo_runs_both_graphs_and_writes_out(tmp_path):
     recorded = topic_types(out / 'recording')
     assert list((out / 'recording').glob('*.mcap'))
     assert {'/joint_states', '/deploy_request', '/gripper_trajectory', '/arm_controller/joint_trajectory',
-            '/deploy_result', '/deployed_shape', '/deploy_markers', '/identification/result'} <= set(recorded)
+            '/deploy_result', '/deployed_shape', '/deploy_markers', '/identification/result',
+            '/identification/markers'} <= set(recorded)

@@ -4,11 +4,14 @@ stiffness_identifier (recorded_topic, with the closed loop) -> /identification/r
 import json
 from pathlib import Path
 
+import numpy as np
+
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 from flex_ident.nodes.joint_state_logger import JointStateLogger
 from flex_ident.nodes.stiffness_identifier import StiffnessIdentifier
@@ -21,9 +24,10 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability
 
 def test_replay_record_identify_as_one_graph(ros_context, wait_for, tmp_path):
     ctx = ros_context.context
-    results = []
+    results, markers = [], []
     probe = ros_context.add(Node('probe', context=ctx))
     probe.create_subscription(String, '/identification/result', lambda m: results.append(json.loads(m.data)), LATCHED)
+    probe.create_subscription(MarkerArray, '/identification/markers', markers.append, LATCHED)
     ros_context.add(StiffnessIdentifier(context=ctx, parameter_overrides=[
         Parameter('experiment', value=str(EXAMPLE / 'experiment.yaml')), Parameter('out', value=str(tmp_path / 'id')),
         Parameter('diagnose', value=True), Parameter('recorded_topic', value='/joint_state_logger/recorded')]))
@@ -41,6 +45,13 @@ def test_replay_record_identify_as_one_graph(ros_context, wait_for, tmp_path):
     assert abs(report['parameters']['k_theta'] - 5.0) < 0.05 and abs(report['parameters']['k_phi'] - 3.0) < 0.03
     assert 'effects_added' in report and report['effects_added'] == [], report.get('effects_added')  # clean data
     assert (tmp_path / 'id' / 'report.json').exists()
+    # the identified loop as markers: two branches from the grasp to the clamp, 3 links of 2 R sin(pi/6) = R each
+    assert wait_for(lambda: markers)
+    branches = [np.array([[p.x, p.y, p.z] for p in m.points]) for m in markers[-1].markers if m.ns == 'identified_loop']
+    assert len(branches) == 2 and np.allclose(branches[0][0], branches[1][0], atol=1e-9)
+    assert np.allclose(branches[0][-1], branches[1][-1], atol=1e-6)        # both welded to the clamp
+    for b in branches:
+        assert np.allclose(np.linalg.norm(np.diff(b, axis=0), axis=1), 0.25, atol=1e-6)
 
 
 def test_logger_close_service_announces_the_bag(ros_context, wait_for, tmp_path):

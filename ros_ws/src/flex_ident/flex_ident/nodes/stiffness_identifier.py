@@ -22,6 +22,9 @@ Publishes
                         runs, a 1 Hz heartbeat otherwise; level ERROR when a job fails
   /identification/result (std_msgs/String, reliable, transient local, depth 1: latched)  the report JSON
                         (CONTRACTS.md section 3), or {"error": ..., "error_type": ..., "request": ...}
+  /identification/markers (visualization_msgs/MarkerArray, latched)  the identified loop: both branches at the
+                        static equilibrium of the recording's first sample with the identified springs (frame 'base',
+                        the arm's base frame); nothing for an arm-only experiment
 
 The algorithm is flex_ident.identification.identify.run_identification; this node only moves requests and results.
 """
@@ -39,14 +42,17 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 from flex_ident.identification.report import json_default
 from robot_bridge.nodes.common import declare_parameter, run_node
+from robot_bridge.nodes.markers import line_strip, marker_array
 
 NODE_NAME = 'stiffness_identifier'
 REQUEST_TOPIC = '/identification/request'
 STATUS_TOPIC = '/identification/status'
 RESULT_TOPIC = '/identification/result'
+MARKER_TOPIC = '/identification/markers'
 PROGRESS_MIN_PERIOD_S = 0.1
 HEARTBEAT_PERIOD_S = 1.0
 
@@ -109,6 +115,7 @@ class StiffnessIdentifier(Node):
         self._last_stage = None
         self.status_pub = self.create_publisher(DiagnosticArray, STATUS_TOPIC, RELIABLE)
         self.result_pub = self.create_publisher(String, RESULT_TOPIC, LATCHED)
+        self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, LATCHED)
         self.request_sub = self.create_subscription(String, REQUEST_TOPIC, self._on_request, RELIABLE)
         self.run_srv = self.create_service(Trigger, '~/run', self._on_run)
         self._heartbeat = self.create_timer(HEARTBEAT_PERIOD_S, self._publish_heartbeat)
@@ -225,6 +232,7 @@ class StiffnessIdentifier(Node):
             return
         elapsed = time.monotonic() - t0
         self._publish(self.result_pub, String(data=text))
+        self._publish_loop_markers(request, report)
         summary = {'state': 'done', 'job_id': job_id, 'elapsed_s': round(elapsed, 3), **asdict(request)}
         params = report.get('parameters')
         if isinstance(params, dict):
@@ -233,6 +241,21 @@ class StiffnessIdentifier(Node):
         self.get_logger().info(f'job {job_id} done in {elapsed:.1f} s: {params}')
         with self._lock:
             self._state = {'state': 'idle', 'last_job': job_id, 'last_outcome': 'done'}
+
+    def _publish_loop_markers(self, request: IdentificationRequest, report: dict):
+        """The identified loop as markers (a failure here is logged: the report is already out)."""
+        params = report.get('parameters')
+        if not isinstance(params, dict):
+            return
+        try:
+            from flex_ident.identification.loop_shape import identified_loop_branches
+            branches = identified_loop_branches(request.bag, request.experiment, params)
+        except Exception as exc:   # noqa: BLE001
+            self.get_logger().warn(f'no loop markers: {type(exc).__name__}: {exc}')
+            return
+        if branches:
+            self._publish(self.marker_pub, marker_array(
+                [line_strip('identified_loop', i, b, 'green', 0.01, 'base') for i, b in enumerate(branches)]))
 
     def _on_progress(self, job_id: int, t0: float, info: dict):
         now = time.monotonic()
