@@ -42,6 +42,13 @@ def test_colcon_build_installs_every_node_where_ros2_run_looks(tmp_path):
         for exe in scripts:
             path = ros2_run_path(prefixes, pkg, exe)
             assert path is not None and path.is_file() and os.access(path, os.X_OK), (pkg, exe)
+    for pkg in PACKAGES:            # the launch files (not run here: no `launch` package) are installed and parse
+        sources = sorted((ROOT / 'ros_ws' / 'src' / pkg / 'launch').glob('*.launch.py'))
+        assert sources, pkg
+        for source in sources:
+            installed = tmp_path / 'install' / pkg / 'share' / pkg / 'launch' / source.name
+            assert installed.is_file(), installed
+            compile(installed.read_text(), str(installed), 'exec')
     help_run = subprocess.run([str(ros2_run_path(prefixes, 'robot_bridge', 'bag-tools')), '--help'],
                               capture_output=True, text=True, timeout=60)
     assert help_run.returncode == 0 and 'import-csv' in help_run.stdout

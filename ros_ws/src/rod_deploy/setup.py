@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'rod_deploy'
@@ -10,6 +12,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     install_requires=['setuptools'],
     zip_safe=False,
@@ -21,6 +24,7 @@ setup(
         'console_scripts': [
             'pattern_perception = rod_deploy.nodes.pattern_perception:main',
             'grasp_trajectory_generator = rod_deploy.nodes.grasp_trajectory_generator:main',
+            'deployment_monitor = rod_deploy.nodes.deployment_monitor:main',
             'rod-deploy = rod_deploy.cli.main:main',
         ],
     },

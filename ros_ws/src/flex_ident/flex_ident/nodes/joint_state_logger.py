@@ -4,6 +4,13 @@ Parameters
   output  (string)    bag directory to create (default: joint_log_<UTC time> in the working directory)
   storage (string)    'mcap' (default) or 'sqlite3'
   topics  (string[])  topics to record (default: /joint_states, /wrench)
+  close_after_idle_s (double) close the bag once no message arrived for this long after the first one
+                      (default 0: record until stopped)
+
+Services ``~/close`` (std_srvs/Trigger): close the bag now. When the bag is closed (idle, service, Ctrl-C/SIGTERM)
+the node announces it on ``~/recorded`` (std_msgs/String JSON {"bag": path, "storage", "messages": {topic: n}},
+RELIABLE + TRANSIENT_LOCAL): stiffness_identifier with ``recorded_topic:=/joint_state_logger/recorded`` identifies
+it, which makes record -> identify one graph.
 
 Like rosbag2, each topic is subscribed once a publisher appears, with the publisher's reliability
 (RELIABLE if every publisher offers it, else BEST_EFFORT). Messages are recorded as received (serialized
@@ -18,16 +25,22 @@ import threading
 import time
 from collections import Counter
 
+import json
+
 import numpy as np
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
 
 from robot_bridge.bagio.contract import JOINT_STATE_TYPE
 from robot_bridge.bagio.raw import STORAGES, RawBagWriter, deserialize
-from robot_bridge.nodes.common import declare_parameter, message_class, run_node
+from robot_bridge.nodes.common import declare_parameter, message_class, non_negative, run_node
 
 DEFAULT_TOPICS = ['/joint_states', '/wrench']
 SUBSCRIPTION_DEPTH = 10000
+LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def joint_state_problems(msg) -> list[str]:
@@ -52,6 +65,9 @@ class JointStateLogger(Node):
         self.topics = declare_parameter(
             self, 'topics', DEFAULT_TOPICS, 'topics to record', kind=list,
             check=lambda v: None if v else f'must name at least one topic (default: {DEFAULT_TOPICS})')
+        self.close_after_idle_s = declare_parameter(
+            self, 'close_after_idle_s', 0.0, 'close the bag after this many seconds without messages (0: never)',
+            check=non_negative)
         if not self.output:
             raise ValueError("parameter 'output' must name the bag directory to create")
         if self.storage not in STORAGES:
@@ -61,6 +77,9 @@ class JointStateLogger(Node):
         self.counts: Counter = Counter()
         self.malformed = 0
         self._closed = False
+        self.closed = threading.Event()
+        self._close_lock = threading.Lock()
+        self._last_message_s = None
         self._opened = threading.Event()
         self._open_error = None
         # The writer thread owns the bag for its whole life (sqlite3 connections are thread-bound).
@@ -71,6 +90,10 @@ class JointStateLogger(Node):
             self._closed = True
             raise self._open_error
         self._discovery_timer = self.create_timer(0.05, self._subscribe_new_publishers)
+        self.recorded_pub = self.create_publisher(String, '~/recorded', LATCHED)
+        self.close_service = self.create_service(Trigger, '~/close', self._on_close_request)
+        if self.close_after_idle_s > 0:
+            self._idle_timer = self.create_timer(0.1, self._close_when_idle)
         self.get_logger().info(f'recording {self.topics} to {self.output} ({self.storage})')
 
     # -- subscriptions, as publishers appear ------------------------------------------------------------
@@ -102,6 +125,7 @@ class JointStateLogger(Node):
         return [t for t, s in self._topic_subscriptions.items() if s is not None]
 
     def _on_message(self, topic, msgtype, data):
+        self._last_message_s = time.monotonic()
         self._queue.put((topic, msgtype, self.get_clock().now().nanoseconds, data))
 
     # -- writing ------------------------------------------------------------------------------------------
@@ -140,11 +164,24 @@ class JointStateLogger(Node):
                     f'{self.malformed} malformed {topic} message(s) recorded as received; latest: '
                     + '; '.join(problems), throttle_duration_sec=2.0)
 
+    def _close_when_idle(self):
+        if self._last_message_s is not None and time.monotonic() - self._last_message_s > self.close_after_idle_s:
+            self._idle_timer.cancel()
+            self.get_logger().info(f'no message for {self.close_after_idle_s:g} s: closing the bag')
+            self.close()
+
+    def _on_close_request(self, _request, response):
+        response.success = not self._closed
+        self.close()
+        response.message = f'closed {self.output}' if response.success else f'{self.output} was already closed'
+        return response
+
     def close(self):
-        """Write every queued message and close the bag (idempotent)."""
-        if self._closed:
-            return
-        self._closed = True
+        """Write every queued message, close the bag and announce it on ~/recorded (idempotent)."""
+        with self._close_lock:
+            if self._closed:
+                return
+            self._closed = True
         self._discovery_timer.cancel()
         for sub in self._topic_subscriptions.values():   # nothing arrives after the sentinel
             if sub is not None:
@@ -154,6 +191,13 @@ class JointStateLogger(Node):
         self._writer_thread.join()
         summary = ', '.join(f'{t}: {n}' for t, n in sorted(self.counts.items())) or 'no messages'
         self.get_logger().info(f'closed {self.output}: {summary}; {self.malformed} malformed')
+        if self.context.ok():
+            try:
+                self.recorded_pub.publish(String(data=json.dumps(
+                    {'bag': str(self.output), 'storage': self.storage, 'messages': dict(self.counts)})))
+            except Exception as exc:   # noqa: BLE001 - shutting down: the bag is closed, the announcement is moot
+                self.get_logger().debug(f'could not announce the bag: {exc}')
+        self.closed.set()
 
 
 def main(args=None):

@@ -14,11 +14,17 @@ Parameters
   method (string)       optimizer passed to the identification (default 'lm')
   diagnose (bool)       also run the closed loop: find, add and identify effects the model lacks (default false)
   run_on_start (bool)   start a job with the parameters as soon as the node is up (default false)
+  recorded_topic (string) identify every bag announced on this topic (std_msgs/String JSON {"bag": ...}, as
+                        joint_state_logger publishes on /joint_state_logger/recorded when it closes a bag), with
+                        the other parameters; default '' (off)
 Publishes
   /identification/status (diagnostic_msgs/DiagnosticArray)  progress (stage, iteration, cost, fraction) while a job
                         runs, a 1 Hz heartbeat otherwise; level ERROR when a job fails
   /identification/result (std_msgs/String, reliable, transient local, depth 1: latched)  the report JSON
                         (CONTRACTS.md section 3), or {"error": ..., "error_type": ..., "request": ...}
+  /identification/markers (visualization_msgs/MarkerArray, latched)  the identified loop: both branches at the
+                        static equilibrium of the recording's first sample with the identified springs (frame 'base',
+                        the arm's base frame); nothing for an arm-only experiment
 
 The algorithm is flex_ident.identification.identify.run_identification; this node only moves requests and results.
 """
@@ -36,14 +42,17 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 from flex_ident.identification.report import json_default
 from robot_bridge.nodes.common import declare_parameter, run_node
+from robot_bridge.nodes.markers import line_strip, marker_array
 
 NODE_NAME = 'stiffness_identifier'
 REQUEST_TOPIC = '/identification/request'
 STATUS_TOPIC = '/identification/status'
 RESULT_TOPIC = '/identification/result'
+MARKER_TOPIC = '/identification/markers'
 PROGRESS_MIN_PERIOD_S = 0.1
 HEARTBEAT_PERIOD_S = 1.0
 
@@ -106,10 +115,15 @@ class StiffnessIdentifier(Node):
         self._last_stage = None
         self.status_pub = self.create_publisher(DiagnosticArray, STATUS_TOPIC, RELIABLE)
         self.result_pub = self.create_publisher(String, RESULT_TOPIC, LATCHED)
+        self.marker_pub = self.create_publisher(MarkerArray, MARKER_TOPIC, LATCHED)
         self.request_sub = self.create_subscription(String, REQUEST_TOPIC, self._on_request, RELIABLE)
         self.run_srv = self.create_service(Trigger, '~/run', self._on_run)
         self._heartbeat = self.create_timer(HEARTBEAT_PERIOD_S, self._publish_heartbeat)
         self._start_timer = self.create_timer(0.0, self._start_from_parameters) if run_on_start else None
+        recorded_topic = declare_parameter(self, 'recorded_topic', '',
+                                           'identify every bag announced on this topic (JSON {"bag": ...})')
+        if recorded_topic:
+            self.recorded_sub = self.create_subscription(String, recorded_topic, self._on_recorded, LATCHED)
         self.get_logger().info(f'ready: publish JSON on {REQUEST_TOPIC} (e.g. with `flex-ident request`) or call '
                                f'{self.get_fully_qualified_name()}/run')
         if bag and experiment and not run_on_start:
@@ -152,6 +166,19 @@ class StiffnessIdentifier(Node):
         started, message = self.submit(request)
         response.success, response.message = started, message
         return response
+
+    def _on_recorded(self, msg: String):
+        values = self._parameter_values()
+        try:
+            data = json.loads(msg.data)
+            if not isinstance(data, dict) or not data.get('bag'):
+                raise RequestError(f'a recorded-bag announcement needs {{"bag": ...}}, got {msg.data[:200]!r}')
+            values['bag'] = str(data['bag'])
+            request = IdentificationRequest.from_values(**values)
+        except (ValueError, RequestError) as exc:      # json.JSONDecodeError is a ValueError
+            self._report_error(RequestError(str(exc)), values)
+            return
+        self.submit(request)
 
     def _start_from_parameters(self):
         self._start_timer.cancel()
@@ -205,6 +232,7 @@ class StiffnessIdentifier(Node):
             return
         elapsed = time.monotonic() - t0
         self._publish(self.result_pub, String(data=text))
+        self._publish_loop_markers(request, report)
         summary = {'state': 'done', 'job_id': job_id, 'elapsed_s': round(elapsed, 3), **asdict(request)}
         params = report.get('parameters')
         if isinstance(params, dict):
@@ -213,6 +241,21 @@ class StiffnessIdentifier(Node):
         self.get_logger().info(f'job {job_id} done in {elapsed:.1f} s: {params}')
         with self._lock:
             self._state = {'state': 'idle', 'last_job': job_id, 'last_outcome': 'done'}
+
+    def _publish_loop_markers(self, request: IdentificationRequest, report: dict):
+        """The identified loop as markers (a failure here is logged: the report is already out)."""
+        params = report.get('parameters')
+        if not isinstance(params, dict):
+            return
+        try:
+            from flex_ident.identification.loop_shape import identified_loop_branches
+            branches = identified_loop_branches(request.bag, request.experiment, params)
+        except Exception as exc:   # noqa: BLE001
+            self.get_logger().warn(f'no loop markers: {type(exc).__name__}: {exc}')
+            return
+        if branches:
+            self._publish(self.marker_pub, marker_array(
+                [line_strip('identified_loop', i, b, 'green', 0.01, 'base') for i, b in enumerate(branches)]))
 
     def _on_progress(self, job_id: int, t0: float, info: dict):
         now = time.monotonic()

@@ -107,3 +107,10 @@ class ArmKinematics:
     def gripper_positions(self, qs) -> np.ndarray:
         """Origins of G (K x 3, base_link frame) for joint positions qs (K x nq)."""
         return np.array([self.gripper_se3(q).translation for q in np.atleast_2d(qs)])
+
+    def chain_points(self, q) -> np.ndarray:
+        """(nq + 2, 3) points of the arm at q in base_link: the base origin, every joint origin, the gripper frame's
+        origin (a stick figure of the pose, e.g. for markers)."""
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        joints = [self.data.oMi[j].translation.copy() for j in range(1, self.model.njoints)]
+        return np.vstack([np.zeros(3)] + joints + [self.data.oMf[self.frame_id].translation.copy()])

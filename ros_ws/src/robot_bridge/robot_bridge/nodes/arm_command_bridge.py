@@ -70,33 +70,46 @@ def trajectory_msg(plan: JointPlan, lead_in_s: float) -> JointTrajectory:
     return msg
 
 
+def declare_bridge_config(node: Node) -> BridgeConfig:
+    """The arm and scene parameters (urdf, base_link, tip_link, joints, table_xyz/rpy, grasp_xyz/rpy, scalings,
+    limits, tolerances) declared on ``node`` and read into a BridgeConfig; shared by every node that needs the
+    bridge's kinematics (the deployment monitor computes the executed gripper path with them)."""
+    d = BridgeConfig()
+
+    def param(name, default, description):
+        return node.declare_parameter(name, default, ParameterDescriptor(
+            description=description, dynamic_typing=True)).value
+
+    config = BridgeConfig(
+        urdf=param('urdf', '', 'arm URDF (empty: the project\'s Baxter right arm)'),
+        base_link=param('base_link', d.base_link, 'base frame of the arm'),
+        tip_link=param('tip_link', d.tip_link, 'link holding the gripper frame'),
+        joints=list(param('joints', d.joints, 'arm joints, base to tip')),
+        table_xyz=tuple(param('table_xyz', list(d.table_xyz), 'table frame origin in base_link [m]')),
+        table_rpy=tuple(param('table_rpy', list(d.table_rpy), 'table frame rpy in base_link [rad]')),
+        grasp_xyz=tuple(param('grasp_xyz', list(d.grasp_xyz), 'gripper frame origin in tip_link [m]')),
+        grasp_rpy=tuple(param('grasp_rpy', list(d.grasp_rpy), 'gripper frame rpy in tip_link [rad]')),
+        velocity_scaling=param('velocity_scaling', 1.0, 'fraction of the joint velocity limits'),
+        acceleration_scaling=param('acceleration_scaling', 1.0, 'fraction of the acceleration limits'),
+        acceleration_limits_rad_s2=list(param('acceleration_limits', [0.0], 'rad/s^2 per joint ([0]: '
+                                              'velocity limit / 0.5 s)')),
+        position_tolerance_m=param('position_tolerance', d.position_tolerance_m, 'IK position tolerance [m]'),
+        orientation_tolerance_rad=param('orientation_tolerance', d.orientation_tolerance_rad,
+                                        'IK orientation tolerance [rad]'))
+    if config.acceleration_limits_rad_s2 == [0.0]:
+        config.acceleration_limits_rad_s2 = []
+    return config
+
+
 class ArmCommandBridge(Node):
     def __init__(self, **kwargs):
         super().__init__('arm_command_bridge', **kwargs)
-        d = BridgeConfig()
+        config = declare_bridge_config(self)
 
         def param(name, default, description):
             return self.declare_parameter(name, default, ParameterDescriptor(
                 description=description, dynamic_typing=True)).value
 
-        config = BridgeConfig(
-            urdf=param('urdf', '', 'arm URDF (empty: the project\'s Baxter right arm)'),
-            base_link=param('base_link', d.base_link, 'base frame of the arm'),
-            tip_link=param('tip_link', d.tip_link, 'link holding the gripper frame'),
-            joints=list(param('joints', d.joints, 'arm joints, base to tip')),
-            table_xyz=tuple(param('table_xyz', list(d.table_xyz), 'table frame origin in base_link [m]')),
-            table_rpy=tuple(param('table_rpy', list(d.table_rpy), 'table frame rpy in base_link [rad]')),
-            grasp_xyz=tuple(param('grasp_xyz', list(d.grasp_xyz), 'gripper frame origin in tip_link [m]')),
-            grasp_rpy=tuple(param('grasp_rpy', list(d.grasp_rpy), 'gripper frame rpy in tip_link [rad]')),
-            velocity_scaling=param('velocity_scaling', 1.0, 'fraction of the joint velocity limits'),
-            acceleration_scaling=param('acceleration_scaling', 1.0, 'fraction of the acceleration limits'),
-            acceleration_limits_rad_s2=list(param('acceleration_limits', [0.0], 'rad/s^2 per joint ([0]: '
-                                                  'velocity limit / 0.5 s)')),
-            position_tolerance_m=param('position_tolerance', d.position_tolerance_m, 'IK position tolerance [m]'),
-            orientation_tolerance_rad=param('orientation_tolerance', d.orientation_tolerance_rad,
-                                            'IK orientation tolerance [rad]'))
-        if config.acceleration_limits_rad_s2 == [0.0]:
-            config.acceleration_limits_rad_s2 = []
         self.default_lead_in_s = float(param('lead_in_s', 2.0, 'time to the first pose if the arm state is unknown'))
         csv_path = param('trajectory_csv', '', 'gripper trajectory CSV to plan once at start')
         self.wait_for_arm_s = float(param('wait_for_arm', 5.0, 'with trajectory_csv: seconds to wait for a '

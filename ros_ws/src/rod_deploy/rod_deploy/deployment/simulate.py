@@ -109,9 +109,13 @@ def material_parameters(rod: RodDescription, friction: float, damping_per_s: flo
 
 
 def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,
-                        progress=None) -> DeploymentResult:
-    """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion)."""
+                        progress=None, n_lead_in: int | None = None) -> DeploymentResult:
+    """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion).
+
+    ``n_lead_in``: rows of the lead-in when known (e.g. a measured trajectory, whose straight lead-in line is only
+    straight to the arm's tracking error); default: found by ``lead_in_rows``."""
     settings = settings or SimulationSettings()
+    t_in = np.asarray(t, float)
     if settings.hold_free_end not in ('lead-in', 'always'):
         raise DeploymentError(f"hold_free_end must be 'lead-in' or 'always', got {settings.hold_free_end!r}")
     t = np.asarray(t, float)
@@ -144,7 +148,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
                 f'{np.round(z_g, 3).tolist()}; give the pattern\'s first point (--start X Y or --pattern) so that '
                 f'the simulation can lead in from the hanging pose above it')
         start = position[0, :2].copy()
-    n_lead = lead_in_rows(position)
+    n_lead = lead_in_rows(position) if n_lead_in is None else int(n_lead_in) + (len(position) - len(t_in))
     t = t - t[0]
     # -- replay speed: the gripper never faster than max_gripper_speed_m_s
     seg = np.linalg.norm(np.diff(position, axis=0), axis=1)

@@ -29,32 +29,36 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.time import Time
 
 from robot_bridge.nodes.common import LatestMessageWorker, declare_parameter, non_negative, positive, run_node
-from rod_deploy.planning.rod_description import load_rod_description, rod_description_from_dict
+from rod_deploy.planning.rod_description import RodDescription, load_rod_description, rod_description_from_dict
 from rod_deploy.planning.trajectory import METHODS, PlannerSettings, plan_trajectory
 
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+def declare_rod(node: Node) -> RodDescription:
+    """The rod from parameter 'rod_yaml', or 'length', 'radius' and 'L_gb' [m] (shared with deployment_monitor)."""
+    rod_yaml = declare_parameter(node, 'rod_yaml', '', 'rod description YAML (else length, radius, L_gb)')
+    length = declare_parameter(node, 'length', 0.0, 'rod length [m]', check=non_negative)
+    radius = declare_parameter(node, 'radius', 0.0, 'rod radius h [m]', check=non_negative)
+    lgb = declare_parameter(node, 'L_gb', 0.0, 'gravito-bending length [m]', check=non_negative)
+    if rod_yaml:
+        return load_rod_description(rod_yaml)
+    if length and radius and lgb:
+        return rod_description_from_dict({'length': length, 'radius': radius, 'L_gb': lgb}, 'parameters')
+    raise ValueError("give the rod: parameter 'rod_yaml', or 'length', 'radius' and 'L_gb' [m]")
+
+
 class GraspTrajectoryGenerator(Node):
     def __init__(self, **kwargs):
         super().__init__('grasp_trajectory_generator', **kwargs)
-        rod_yaml = declare_parameter(self, 'rod_yaml', '', 'rod description YAML (else length, radius, L_gb)')
-        length = declare_parameter(self, 'length', 0.0, 'rod length [m]', check=non_negative)
-        radius = declare_parameter(self, 'radius', 0.0, 'rod radius h [m]', check=non_negative)
-        lgb = declare_parameter(self, 'L_gb', 0.0, 'gravito-bending length [m]', check=non_negative)
+        self.rod = declare_rod(self)
         method = declare_parameter(self, 'method', 'nn', 'nn, numeric or intuitive',
                                    check=lambda v: None if v in METHODS else f'must be one of {METHODS}')
         step = declare_parameter(self, 'step_m', 0.005, 'node spacing along the pattern [m]', check=positive)
         smoothing = declare_parameter(self, 'smoothing_m', 0.0005, 'smoothing spline RMS distance [m]',
                                       check=non_negative)
         speed = declare_parameter(self, 'speed_m_s', 0.01, 'gripper speed [m/s]', check=positive)
-        if rod_yaml:
-            self.rod = load_rod_description(rod_yaml)
-        elif length and radius and lgb:
-            self.rod = rod_description_from_dict({'length': length, 'radius': radius, 'L_gb': lgb}, 'parameters')
-        else:
-            raise ValueError("give the rod: parameter 'rod_yaml', or 'length', 'radius' and 'L_gb' [m]")
         self.settings = PlannerSettings(method=method, step_m=step, smoothing_m=smoothing, speed_m_s=speed)
         self.settings.validate()
         self.publisher = self.create_publisher(Path, '/gripper_trajectory', LATCHED)

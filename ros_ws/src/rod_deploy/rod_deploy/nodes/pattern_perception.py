@@ -1,12 +1,16 @@
-"""pattern_perception: the deployment request image in, the pattern as ``nav_msgs/Path`` out.
+"""pattern_perception: the deployment request in, the pattern as ``nav_msgs/Path`` out.
 
-Subscribes ``/deploy_request`` (``sensor_msgs/Image``: rgb8, bgr8, mono8, rgba8, bgra8, mono16/16UC1;
-RELIABLE, depth 1, or the sensor-data QoS with ``best_effort_input``), perceives the strokes or rods in a
-worker thread (the subscription never waits for processing; a request arriving while one is processed
-replaces any queued one) and publishes ``/pattern`` (``nav_msgs/Path``, frame ``table``, RELIABLE +
-TRANSIENT_LOCAL, depth 1): the centreline of object ``object_index`` (default 0, the longest) in table
-metres, z = 0, each pose's yaw along the path. Several objects: the chosen one is published and the
-others are logged. A bad image (unknown encoding, wrong size, nothing found) is logged as an error.
+Subscribes ``/deploy_request``: a ``sensor_msgs/Image`` of a drawn pattern (rgb8, bgr8, mono8, rgba8, bgra8,
+mono16/16UC1; RELIABLE, depth 1, or the sensor-data QoS with ``best_effort_input``), or with
+``request_type:=path`` a ``nav_msgs/Path`` of pattern points already in the table frame [m] (one process cannot
+hold two message types on one topic name, hence the parameter). Perceives the strokes or rods in a worker thread
+(the subscription never waits for processing; a request arriving while one is processed replaces any queued one)
+and publishes ``/pattern`` (``nav_msgs/Path``, frame ``table``, RELIABLE + TRANSIENT_LOCAL, depth 1): the
+centreline of object ``object_index`` (default 0, the longest) in table metres, z = 0, each pose's yaw along the
+path (a Path request is checked - at least 3 finite points - and passed on). Several objects: the chosen one is
+published and the others are logged. ``~/status`` (``diagnostic_msgs/DiagnosticArray``, RELIABLE +
+TRANSIENT_LOCAL): OK 'request received' (key ``request`` counts them) when a request arrives, then OK with the
+summary or ERROR saying why (unknown encoding, wrong size, nothing found, a bad path).
 
 Parameters
   m_per_px            (double)   table metres per pixel s (default 0.001)
@@ -16,12 +20,14 @@ Parameters
   step_px             (double)   point spacing along the path [px] (default 2)
   object_index        (int)      object to publish (default 0)
   best_effort_input   (bool)     subscribe with the sensor-data QoS (default false: RELIABLE)
+  request_type        (string)   'image' (default) or 'path'
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
@@ -34,6 +40,7 @@ from robot_bridge.nodes.common import (FLOAT_LIST, LatestMessageWorker, declare_
 from rod_deploy.perception.pipeline import PerceptionConfig, PerceptionError, perceive
 from rod_deploy.perception.pixel_mapping import Homography, MappingError, ScaleOrigin
 
+REQUEST_TYPES = {'image': Image, 'path': Path}
 CHANNELS = {'rgb8': 3, 'bgr8': 3, 'mono8': 1, '8UC1': 1, '8UC3': 3, 'rgba8': 4, 'bgra8': 4,
             'mono16': 1, '16UC1': 1}
 
@@ -86,6 +93,9 @@ class PatternPerception(Node):
                                               check=non_negative)
         best_effort = declare_parameter(self, 'best_effort_input', False,
                                         'subscribe with the sensor-data QoS (default: RELIABLE)')
+        self.request_type = declare_parameter(
+            self, 'request_type', 'image', "message type on /deploy_request: 'image' or 'path'",
+            check=lambda v: None if v in REQUEST_TYPES else f'must be one of {sorted(REQUEST_TYPES)}')
         self.homography = None
         if homography:
             if len(homography) != 9:
@@ -101,21 +111,60 @@ class PatternPerception(Node):
         request_qos = qos_profile_sensor_data if best_effort else QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE)
         self.publisher = self.create_publisher(Path, '/pattern', latched)
+        self.status = self.create_publisher(DiagnosticArray, '~/status', latched)
         self.published = 0
         self.errors = 0
+        self.requests = 0
         self._worker = LatestMessageWorker(self._handle, 'perception')
-        self.subscription = self.create_subscription(Image, '/deploy_request', self._worker.submit, request_qos)
-        self.get_logger().info('waiting for images on /deploy_request; the pattern goes to /pattern')
+        self.subscription = self.create_subscription(REQUEST_TYPES[self.request_type], '/deploy_request',
+                                                     self._on_request, request_qos)
+        self.get_logger().info(f'waiting for {self.request_type} requests on /deploy_request; the pattern goes to '
+                               f'/pattern')
 
-    def _handle(self, msg: Image):
+    def _on_request(self, msg):
+        self.requests += 1
+        self._publish_status(DiagnosticStatus.OK, 'request received', {'request': self.requests})
+        self._worker.submit(msg)
+
+    def _handle(self, msg):
+        what = 'image' if isinstance(msg, Image) else 'path'
         try:
-            self._process(msg)
+            summary = self._process(msg) if isinstance(msg, Image) else self._pass_path(msg)
         except (ValueError, MappingError) as exc:     # PerceptionError is a ValueError
             self.errors += 1
-            self.get_logger().error(f'deployment request image rejected: {exc}')
-        except Exception as exc:                       # keep the node alive whatever the image
+            self.get_logger().error(f'deployment request {what} rejected: {exc}')
+            self._publish_status(DiagnosticStatus.ERROR, f'request {what} rejected: {exc}', {'request': self.requests})
+            return
+        except Exception as exc:                       # keep the node alive whatever the request
             self.errors += 1
-            self.get_logger().error(f'perception failed on the request image: {type(exc).__name__}: {exc}')
+            text = f'perception failed on the request {what}: {type(exc).__name__}: {exc}'
+            self.get_logger().error(text)
+            self._publish_status(DiagnosticStatus.ERROR, text, {'request': self.requests})
+            return
+        self._publish_status(DiagnosticStatus.OK, 'pattern published', dict(summary, request=self.requests))
+
+    def _publish_status(self, level, message: str, values: dict):
+        st = DiagnosticStatus(level=level, name=self.get_fully_qualified_name(), message=message,
+                              values=[KeyValue(key=str(k), value=str(v)) for k, v in values.items()])
+        arr = DiagnosticArray(status=[st])
+        arr.header.stamp = self.get_clock().now().to_msg()
+        self.status.publish(arr)
+
+    def _pass_path(self, msg: Path) -> dict:
+        """A pattern given as points in the table frame: checked and passed on to /pattern."""
+        xy = np.array([[p.pose.position.x, p.pose.position.y] for p in msg.poses], float).reshape(-1, 2)
+        if len(xy) < 3:
+            raise ValueError(f'a pattern needs at least 3 points, got {len(xy)}')
+        bad = np.flatnonzero(~np.all(np.isfinite(xy), axis=1))
+        if bad.size:
+            raise ValueError(f'point {int(bad[0])} of the pattern is not finite')
+        if msg.header.frame_id not in ('', 'table'):
+            raise ValueError(f"the pattern must be in the 'table' frame, got '{msg.header.frame_id}'")
+        self.publisher.publish(self._path_message(msg, xy[:, 0], xy[:, 1]))
+        self.published += 1
+        length = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
+        self.get_logger().info(f'published /pattern: {len(xy)} points of the request path, {length:.3f} m')
+        return {'points': len(xy), 'length_m': round(length, 4)}
 
     def _mapping(self, shape):
         if self.homography is not None:
@@ -144,8 +193,10 @@ class PatternPerception(Node):
         note = f'; {n - 1} other object(s) not published' if n > 1 else ''
         self.get_logger().info(f'published /pattern: object {self.object_index} of {n}, {len(x)} points, '
                                f'{length:.3f} m, {result.timings_ms["total"]:.0f} ms{note}')
+        return {'objects': n, 'points': len(x), 'length_m': round(length, 4),
+                'perception_ms': round(float(result.timings_ms['total']), 1)}
 
-    def _path_message(self, msg: Image, x: np.ndarray, y: np.ndarray) -> Path:
+    def _path_message(self, msg, x: np.ndarray, y: np.ndarray) -> Path:
         path = Path()
         stamp = msg.header.stamp
         if stamp.sec == 0 and stamp.nanosec == 0:
