@@ -29,9 +29,14 @@ class CrossingDecision:
     spans: tuple = ()                # ((first, last) index range of the pass of a, same for b)
 
 
-def _lab_ab(bgr_pixels: np.ndarray) -> np.ndarray:
+def _lab(bgr_pixels: np.ndarray) -> np.ndarray:
+    """(n, 3) CIELAB (L*, a*, b*) of BGR pixels."""
     px = np.asarray(bgr_pixels, dtype=np.float32).reshape(-1, 1, 3) / 255.0
-    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab).reshape(-1, 3)[:, 1:]
+    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab).reshape(-1, 3)
+
+
+def _lab_ab(bgr_pixels: np.ndarray) -> np.ndarray:
+    return _lab(bgr_pixels)[:, 1:]
 
 
 def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -74,6 +79,7 @@ def colour_sampler(image_bgr: np.ndarray):
         return out
 
     colour_of.at = lambda points: _lab_ab(_sample(image_bgr, points))
+    colour_of.lab_at = lambda points: _lab(_sample(image_bgr, points))
     colour_of.batch = batch
     return colour_of
 

@@ -29,6 +29,7 @@ from rod_deploy.perception.synthetic import curve_from_function, random_rod_curv
 PALETTE = [(90, 90, 230), (60, 220, 200), (200, 200, 60), (50, 200, 50), (230, 120, 200), (40, 140, 250),
            (200, 200, 200), (60, 60, 200), (40, 170, 230)]
 MIN_ANGLE_DEG = 25.0        # crossings of the other kinds are at least this steep ('shallow': 12-28 deg)
+MIN_CONTRAST = 40.0         # grey levels between a rod's shaded side and the table (some channel)
 SCENE_KINDS = ('under_loop', 'shallow', 'self_loop', 'letter_e', 'knot', 'cross_twice', 'random')
 
 
@@ -213,7 +214,7 @@ def loop_curve(rng, radius_px, t_in=None, t_out=None):
 def letter_e_curve(rng, width_px):
     """A cursive 'e': a short lead-in that the loop crosses a few widths after the rod's start, the loop,
     and a long exit (the way a deployed letter 'e' lies)."""
-    radius = rng.uniform(3.0, 5.0) * width_px
+    radius = rng.uniform(3.5, 5.5) * width_px
     return loop_curve(rng, radius, t_in=rng.uniform(1.95, 2.1), t_out=rng.uniform(2.8, 3.3))
 
 
@@ -304,9 +305,13 @@ def crossing_scene(kind: str, seed: int, shape=(480, 640), tries: int = 400) -> 
             colours[1] = tuple(int(np.clip(v + rng.integers(-20, 21), 0, 255)) for v in colours[0])
         dark = rng.uniform() < 0.5
         background = (20, 20, 22) if dark else tuple(int(v) for v in rng.integers(90, 150, 3))
+        ambient = rng.uniform(0.4, 0.6)
+        # every rod stands out from the table even on its shaded side (segmentation is not tested here)
+        if any(np.abs(ambient * np.asarray(c, float) - background).max() < MIN_CONTRAST for c in colours):
+            continue
         img = render_rod_scene(shape, curves, widths, colours, crossings, background=background,
                                texture=rng.uniform(3, 12), gradient=rng.uniform(0, 0.3),
-                               light_azimuth_rad=rng.uniform(0, 2 * np.pi), ambient=rng.uniform(0.4, 0.6),
+                               light_azimuth_rad=rng.uniform(0, 2 * np.pi), ambient=ambient,
                                shadow_strength=rng.uniform(0.3, 0.6), blur_sigma=rng.uniform(0.5, 1.2),
                                noise_std=rng.uniform(2, 5), seed=seed)
         return RodScene(img, curves, widths, colours, crossings, kind)
@@ -316,7 +321,7 @@ def crossing_scene(kind: str, seed: int, shape=(480, 640), tries: int = 400) -> 
 def _shapes(kind, rng, shape, widths):
     size = min(shape[:2])
     if kind in ('self_loop', 'under_loop'):
-        r = rng.uniform(2.5, 4.0) * widths[0] if kind == 'self_loop' else rng.uniform(4.0, 6.0) * widths[0]
+        r = rng.uniform(3.5, 6.0) * widths[0] if kind == 'self_loop' else rng.uniform(4.5, 7.0) * widths[0]
         a = _place(loop_curve(rng, r), rng, shape)
         if a is None or kind == 'self_loop':
             return None if a is None else [a]

@@ -43,7 +43,7 @@ from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig
                                                 segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
-from rod_deploy.perception.traversal import join_gaps, split_at_colour_changes, trace_objects
+from rod_deploy.perception.traversal import drop_shadow_strands, join_gaps, split_at_colour_changes, trace_objects
 
 
 class PerceptionError(ValueError):
@@ -172,6 +172,10 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     if not traced:
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
+    if len(traced) > 1:
+        dist = cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
+        traced = drop_shadow_strands(traced, colour_full.lab_at, lambda p: _lookup(dist, p),
+                                     config.min_colour_separation)
     t3 = time.perf_counter()
     timings['graph'] = (t3 - t2) * 1e3
 
