@@ -62,6 +62,7 @@ def curve_crossings(curves: list, step_px: float = 1.0, min_separation_px: float
     for i in range(len(dense)):
         for j in range(i, len(dense)):
             a, b = dense[i], dense[j]
+            sa, sb = arc_length(a), arc_length(b)
             p, r = a[:-1], a[1:] - a[:-1]
             q, s = b[:-1], b[1:] - b[:-1]
             rxs = r[:, None, 0] * s[None, :, 1] - r[:, None, 1] * s[None, :, 0]
@@ -71,12 +72,12 @@ def curve_crossings(curves: list, step_px: float = 1.0, min_separation_px: float
                 u = (qp[..., 0] * r[:, None, 1] - qp[..., 1] * r[:, None, 0]) / rxs
             hit = (np.abs(rxs) > 1e-12) & (t >= 0) & (t < 1) & (u >= 0) & (u < 1)
             if i == j:
-                ii, jj = np.meshgrid(np.arange(len(p)), np.arange(len(q)), indexing='ij')
-                hit &= jj * step_px > ii * step_px + min_separation_px
+                hit &= sb[None, :-1] > sa[:-1, None] + min_separation_px
             for k, m in zip(*np.nonzero(hit)):
                 pos = p[k] + t[k, m] * r[k]
                 cosang = abs(np.dot(r[k], s[m])) / (np.linalg.norm(r[k]) * np.linalg.norm(s[m]))
-                out.append(TrueCrossing((i, j), ((k + t[k, m]) * step_px, (m + u[k, m]) * step_px), pos,
+                out.append(TrueCrossing((i, j), (sa[k] + t[k, m] * (sa[k + 1] - sa[k]),
+                                                 sb[m] + u[k, m] * (sb[m + 1] - sb[m])), pos,
                                         float(np.arccos(np.clip(cosang, 0, 1)))))
     return out
 

@@ -19,7 +19,8 @@ sub-pixel refinement.
     colour facing each other across at most ``max_gap_factor`` w are joined (a rod cut by the shadow of
     the rod above it, a pen skip), and across up to ``max_hidden_factor`` w if the stretch between them
     is covered by the mask (a rod hidden under another one along a length);
- 5. over/under at every crossing from colour where the strands differ (:mod:`.crossing_order`);
+ 5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
+    (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary, arc-length resampling every ``step_px``.
 
@@ -96,11 +97,13 @@ class PerceptionResult:
     timings_ms: dict = field(default_factory=dict)
 
     def summary(self) -> str:
-        decided = sum(1 for c in self.crossings if c.over is not None)
+        colour = sum(1 for c in self.crossings if c.over is not None and c.cue == 'colour')
+        edges = sum(1 for c in self.crossings if c.over is not None and c.cue == 'edges')
         return (f'{len(self.objects)} object(s), lengths '
                 f'{", ".join(f"{o.length_px():.0f}" for o in self.objects)} px, widths '
                 f'{", ".join(f"{o.width_px:.1f}" for o in self.objects)} px; {len(self.crossings)} crossing(s), '
-                f'{decided} with over/under decided from colour; segmentation {self.segmentation.describe()}')
+                f'over/under decided from colour at {colour}, from occlusion edges at {edges}; segmentation '
+                f'{self.segmentation.describe()}')
 
 
 def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -> PerceptionResult:
