@@ -1,4 +1,4 @@
-"""Over/under order at crossings, decided from colour where the two strands differ in colour.
+"""Over/under order at crossings: from colour where the two strands differ, else from occlusion edges.
 
 Where two strands cross, the pixels of the overlap show the upper strand. For every pair of strands
 through a crossing, the overlap point is where their connectors come closest; the colour there (median
