@@ -193,11 +193,6 @@ def _place(curve, rng, shape, margin=30.0):
     return p - p.min(axis=0) + margin + rng.uniform(0, 1, 2) * room
 
 
-def _from_curvature(kappa, ds=1.0, theta0=0.0):
-    theta = theta0 + np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * ds)])
-    return np.cumsum(np.stack([np.sin(theta), np.cos(theta)], axis=1) * ds, axis=0)
-
-
 def loop_curve(rng, radius_px, t_in=None, t_out=None):
     """A rod with one loop (the alpha curve row = b t^2, col = a (t^3 - 3 t), which crosses itself at
     t = -+sqrt(3)): ``radius_px`` is the radius of curvature at the loop's far end, 9 a^2 / (2 b); the
@@ -230,10 +225,6 @@ def knot_curve(size_px, gap=0.45):
     head = c[0] - np.linspace(lead, 0, 60, endpoint=False)[:, None] * t0
     tail = c[-1] + np.linspace(0, lead, 60)[1:, None] * t1
     return np.vstack([head, c, tail])
-
-
-def _count_crossings(curves):
-    return len(curve_crossings(curves))
 
 
 def _far_from_ends(curves, crossings, widths, factor=3.0):
