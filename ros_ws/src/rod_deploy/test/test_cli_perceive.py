@@ -99,3 +99,42 @@ def test_bad_mapping_and_options(stroke_png, tmp_path, capsys):
                             'objects 0..0')):
         assert cli(['perceive', '--image', str(stroke_png), '--out', str(tmp_path / 'p.csv')] + extra) == 2
         assert message in capsys.readouterr().err
+
+
+def test_deployed_shape_of_a_rod_photo_is_ready_for_evaluate(tmp_path, capsys):
+    """A photo of a rod lying as a letter 'e' (crossing itself): the deployed CSV starts at the end nearest
+    to --start-near, is in metres, and `rod-deploy evaluate` reads it (Eq. 17 against the true shape)."""
+    import json
+
+    from rod_deploy.deployment.metrics import read_deployed_csv
+    from rod_deploy.perception.crossing_scenes import crossing_scene
+    from rod_deploy.perception.path_io import write_pattern_file
+    scene = crossing_scene('letter_e', 7, shape=(360, 480))
+    image = tmp_path / 'rod.png'
+    cv2.imwrite(str(image), scene.image)
+    s = 0.001
+    true_xy = np.stack([scene.curves[0][:, 1] * s, (359 - scene.curves[0][:, 0]) * s], axis=1)
+    for start, far in ((true_xy[-1], true_xy[0]), (true_xy[0], true_xy[-1])):
+        deployed = tmp_path / 'deployed.csv'
+        assert cli(['perceive', '--image', str(image), '--m-per-px', str(s), '--out', str(tmp_path / 'p.csv'),
+                    '--deployed-out', str(deployed), '--start-near', *map(str, start)]) == 0
+        assert deployed.read_text().startswith('x,y\n')
+        xy = read_deployed_csv(deployed)
+        assert np.linalg.norm(xy[0] - start) < 0.003 and np.linalg.norm(xy[-1] - far) < 0.003
+    pattern = tmp_path / 'pattern.txt'
+    write_pattern_file(pattern, true_xy)
+    capsys.readouterr()
+    from rod_deploy.cli.main import main
+    assert main(['evaluate', '--pattern', str(pattern), '--deployed', str(deployed), '--directed']) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert report['e_mean_cm'] < 0.2 and not report['reversed']     # Eq. 17 in order: under 2 px
+
+
+def test_deployed_out_needs_metres_and_start_near_needs_it(stroke_png, tmp_path, capsys):
+    assert cli(['perceive', '--image', str(stroke_png), '--out', str(tmp_path / 'p.csv'),
+                '--deployed-out', str(tmp_path / 'd.csv')]) == 2
+    assert 'error: --deployed-out needs --m-per-px' in capsys.readouterr().err
+    assert cli(['perceive', '--image', str(stroke_png), '--m-per-px', '0.001', '--out', str(tmp_path / 'p.csv'),
+                '--start-near', '0', '0']) == 2
+    assert 'error: --start-near applies to --deployed-out' in capsys.readouterr().err
+    assert not (tmp_path / 'd.csv').exists()

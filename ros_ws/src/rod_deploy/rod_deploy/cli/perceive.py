@@ -1,11 +1,15 @@
 """``rod-deploy perceive``: ordered centrelines of drawn strokes or rods in a photo, in table metres.
 
     rod-deploy perceive --image IMG [--m-per-px S [--origin ROW COL] | --homography H.txt] --out path.csv
-                        [--overlay overlay.png] [--pattern pattern.txt [--object K]] [--timing]
+                        [--overlay overlay.png] [--pattern pattern.txt] [--deployed-out deployed.csv
+                        [--start-near X Y]] [--object K] [--timing]
 
 Writes ``path.csv`` (header ``object,row,col,x,y``: object ids from 0 by decreasing length, the points of
 each object in order from one end, pixels and table metres), optionally an overlay PNG and the contract's
-pattern text file of one object. Mapping: ``--m-per-px`` with ``--origin`` (default: the bottom-left pixel
+pattern text file of one object. ``--deployed-out`` writes one object (``--object``, default the longest) as
+the contract's deployed shape (CSV ``x,y`` in metres, ordered from the first deployed end), ready for
+``rod-deploy evaluate --deployed``: it starts at the end nearest to ``--start-near X Y`` (table metres; a
+closed path starts at its point nearest to it), else at the path's first point (its leftmost end). Mapping: ``--m-per-px`` with ``--origin`` (default: the bottom-left pixel
 centre, so the image covers x >= 0, y >= 0) or ``--homography``; without either, x and y are pixel units
 in the same axes (scale 1) and no pattern file can be written. ``--timing`` prints the median processing
 time (perception and mapping; no process start, no image loading) over ``--repeats`` runs.
@@ -36,7 +40,13 @@ def register(subparsers):
     p.add_argument('--out', required=True, help='path.csv to write (object,row,col,x,y)')
     p.add_argument('--overlay', help='PNG to write: the paths, their direction and crossing decisions')
     p.add_argument('--pattern', help='pattern text file (x y z per line, metres) of one object')
-    p.add_argument('--object', type=int, default=0, help='object written to --pattern (default 0, the longest)')
+    p.add_argument('--deployed-out', help="deployed shape CSV to write (contract 'x,y', metres) of one object, "
+                                          'for rod-deploy evaluate')
+    p.add_argument('--start-near', type=float, nargs=2, metavar=('X', 'Y'),
+                   help='--deployed-out starts at the object end nearest to this table point [m] '
+                        '(default: the leftmost end)')
+    p.add_argument('--object', type=int, default=0,
+                   help='object written to --pattern / --deployed-out (default 0, the longest)')
     p.add_argument('--step-px', type=float, default=1.0, help='point spacing along each path [px] (default 1)')
     p.add_argument('--segmentation', choices=('contrast', 'dark', 'bright'), default='contrast',
                    help='foreground evidence: any colour difference from the background (default), '
@@ -92,6 +102,12 @@ def run(args) -> int:
     mapping, metric = _mapping(args, image.shape)
     if args.pattern and not metric:
         raise CliError('--pattern needs --m-per-px or --homography (the pattern file is in metres)')
+    if args.deployed_out and not metric:
+        raise CliError('--deployed-out needs --m-per-px or --homography (the deployed shape is in metres)')
+    if args.start_near and not args.deployed_out:
+        raise CliError('--start-near applies to --deployed-out')
+    if args.start_near and not np.all(np.isfinite(args.start_near)):
+        raise CliError(f'--start-near must be finite, got {args.start_near}')
     config = PerceptionConfig(segmentation=SegmentationConfig(method=args.segmentation), step_px=args.step_px)
 
     def process():
@@ -105,7 +121,7 @@ def run(args) -> int:
         raise CliError(f'{args.image}: {exc}') from None
     if not all(np.all(np.isfinite(p)) for p in xy):
         raise CliError('the mapping sends some path points to infinity; check the homography')
-    if args.pattern and not 0 <= args.object < len(result.objects):
+    if (args.pattern or args.deployed_out) and not 0 <= args.object < len(result.objects):
         raise CliError(f'--object {args.object}: the image has objects 0..{len(result.objects) - 1}')
 
     out = Path(args.out)
@@ -113,6 +129,11 @@ def run(args) -> int:
         write_path_csv(out, [o.points for o in result.objects], xy)
         if args.pattern:
             write_pattern_file(args.pattern, xy[args.object])
+        if args.deployed_out:
+            from rod_deploy.deployment.metrics import write_deployed_csv
+            from rod_deploy.perception.path_io import deployed_order
+            write_deployed_csv(args.deployed_out, deployed_order(xy[args.object], result.objects[args.object].closed,
+                                                                 args.start_near))
         if args.overlay:
             import cv2
             from rod_deploy.perception.overlay import draw_overlay
@@ -131,10 +152,11 @@ def run(args) -> int:
     print(f'mapping: {mapping.describe()}' if metric else
           'mapping: none given (--m-per-px or --homography); x and y are in pixels (scale 1, origin at the '
           'bottom-left pixel)')
-    if len(result.objects) > 1 and args.pattern:
-        print(f'note: {len(result.objects)} objects; the pattern file holds object {args.object} only',
+    if len(result.objects) > 1 and (args.pattern or args.deployed_out):
+        print(f'note: {len(result.objects)} objects; the pattern / deployed file holds object {args.object} only',
               file=sys.stderr)
     print(f'wrote {out}' + (f', {args.pattern}' if args.pattern else '') +
+          (f', {args.deployed_out}' if args.deployed_out else '') +
           (f', {args.overlay}' if args.overlay else ''))
     if args.timing:
         times = []

@@ -1,4 +1,4 @@
-"""Over/under order at crossings, decided from colour where the two strands differ in colour.
+"""Over/under order at crossings: from colour where the two strands differ, else from occlusion edges.
 
 Where two strands cross, the pixels of the overlap show the upper strand. For every pair of strands
 through a crossing, the overlap point is where their connectors come closest; the colour there (median
@@ -6,9 +6,11 @@ over a disc of a third of the stroke width) is compared, in CIELAB chromaticity 
 shading and glare), with each strand's own colour (median along the strand between 1.5 and 3.5 stroke
 widths from the overlap, on both sides). The strand whose own colour is nearer is on top. Colours are
 3x3 means, which keeps JPEG noise out. When the two strands' colours differ by less than
-``min_colour_separation`` (e.g. a rod crossing itself) the order is left undecided: a single-colour photo
-does not show it reliably.
-Confidence = (d_under - d_over) / separation, in [0, 1] for a clean decision.
+``min_colour_separation`` (e.g. a rod crossing itself) the occlusion edges decide
+(:func:`occlusion_edge_strength`: the upper strand's boundary runs on through the overlap, the lower one's
+is hidden), with confidence |e_a - e_b| / (e_a + e_b); below ``min_edge_confidence`` (or at crossings
+shallower than about 12 degrees) the order is left undecided.
+Colour confidence = (d_under - d_over) / separation, in [0, 1] for a clean decision.
 """
 from __future__ import annotations
 
@@ -27,11 +29,17 @@ class CrossingDecision:
     confidence: float                # 0 when undecided
     separation: float                # colour difference of the two strands [CIELAB a*b* units]
     spans: tuple = ()                # ((first, last) index range of the pass of a, same for b)
+    cue: str | None = None           # what decided: 'colour', 'edges' (occlusion edges), None: undecided
+
+
+def _lab(bgr_pixels: np.ndarray) -> np.ndarray:
+    """(n, 3) CIELAB (L*, a*, b*) of BGR pixels."""
+    px = np.asarray(bgr_pixels, dtype=np.float32).reshape(-1, 1, 3) / 255.0
+    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab).reshape(-1, 3)
 
 
 def _lab_ab(bgr_pixels: np.ndarray) -> np.ndarray:
-    px = np.asarray(bgr_pixels, dtype=np.float32).reshape(-1, 1, 3) / 255.0
-    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab).reshape(-1, 3)[:, 1:]
+    return _lab(bgr_pixels)[:, 1:]
 
 
 def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -74,6 +82,7 @@ def colour_sampler(image_bgr: np.ndarray):
         return out
 
     colour_of.at = lambda points: _lab_ab(_sample(image_bgr, points))
+    colour_of.lab_at = lambda points: _lab(_sample(image_bgr, points))
     colour_of.batch = batch
     return colour_of
 
@@ -98,7 +107,7 @@ def _strand_points(points, first, last, centre, width_px):
 
 
 def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
-                     min_colour_separation: float = 12.0) -> list:
+                     min_colour_separation: float = 12.0, min_edge_confidence: float = 0.05) -> list:
     """Decisions for every pair of passes through the same crossing. ``objects`` are traced objects
     (``points``, ``passes`` as (crossing id, first, last) index ranges of their connectors)."""
     by_crossing: dict[int, list] = {}
@@ -120,8 +129,77 @@ def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
                        _strand_points(objects[oa].points, a0, a1, centre, width_px),
                        _strand_points(objects[ob].points, b0, b1, centre, width_px)]
     colours = colour_sampler(image_bgr).batch(point_sets)
-    return [_decide_pair(cid, pa, pb, centre, *colours[3 * k:3 * k + 3], min_colour_separation)
-            for k, ((cid, pa, pb), centre) in enumerate(zip(pairs, centres))]
+    decisions = [_decide_pair(cid, pa, pb, centre, *colours[3 * k:3 * k + 3], min_colour_separation)
+                 for k, ((cid, pa, pb), centre) in enumerate(zip(pairs, centres))]
+    grey = None
+    for dec, (_, (oa, a0, a1), (ob, b0, b1)) in zip(decisions, pairs):
+        if dec.over is not None:
+            continue
+        if grey is None:
+            grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+        ta = _tangent_at(objects[oa].points[a0:a1 + 1], dec.position)
+        tb = _tangent_at(objects[ob].points[b0:b1 + 1], dec.position)
+        if ta is None or tb is None:
+            continue
+        ea = occlusion_edge_strength(grey, dec.position, ta, tb, width_px)
+        eb = occlusion_edge_strength(grey, dec.position, tb, ta, width_px)
+        if not (np.isfinite(ea) and np.isfinite(eb)) or ea + eb <= 0:
+            continue
+        conf = abs(ea - eb) / (ea + eb)
+        if conf >= min_edge_confidence:
+            dec.over, dec.confidence, dec.cue = (oa if ea > eb else ob), float(conf), 'edges'
+    return decisions
+
+
+def _tangent_at(points, position):
+    """Unit tangent of a polyline at its point nearest to ``position`` (None if too short)."""
+    if len(points) < 3:
+        return None
+    k = int(np.argmin(np.hypot(points[:, 0] - position[0], points[:, 1] - position[1])))
+    d = points[min(k + 2, len(points) - 1)] - points[max(k - 2, 0)]
+    n = float(np.linalg.norm(d))
+    return d / n if n > 0 else None
+
+
+def occlusion_edge_strength(grey: np.ndarray, centre, t_self, t_other, width_px: float) -> float:
+    """How strongly strand ``self`` shows its own boundary inside the overlap with strand ``other``.
+
+    The upper rod's silhouette runs on across the crossing (against the lower rod, with the shading at its
+    rim and the shadow it casts), while the lower rod's boundary stops where the upper rod covers it. For
+    lines parallel to ``t_self`` at offsets 1..1.5 w on each side, within the other strand's footprint
+    (|u| <= 0.5 w / sin(angle), u along ``t_self``), the mean absolute derivative of ``grey`` across
+    ``t_self`` is taken; the strongest line on each side counts, and the two sides are added. NaN where
+    the crossing is too shallow or runs off the image."""
+    t_self = np.asarray(t_self, float)
+    sin = abs(t_self[0] * t_other[1] - t_self[1] * t_other[0])
+    if sin < 0.2:
+        return float('nan')
+    n = np.array([-t_self[1], t_self[0]])
+    half = 0.5 * width_px / sin
+    u = np.linspace(-0.7 * half, 0.7 * half, max(3, int(np.ceil(1.4 * half)) + 1))
+    offsets = np.arange(1.0, np.ceil(1.5 * width_px) + 1.0)
+    h, w = grey.shape
+    total = 0.0
+    for side in (1.0, -1.0):
+        o = side * offsets
+        pts = (np.asarray(centre, float)[None, None, :] + o[:, None, None] * n[None, None, :]
+               + u[None, :, None] * t_self[None, None, :])
+        plus, minus = pts + 0.75 * n, pts - 0.75 * n
+        if (min(plus.min(), minus.min()) < 0 or max(plus[..., 0].max(), minus[..., 0].max()) > h - 1
+                or max(plus[..., 1].max(), minus[..., 1].max()) > w - 1):
+            return float('nan')
+        deriv = np.abs(_bilinear(grey, plus) - _bilinear(grey, minus)) / 1.5
+        total += float(deriv.mean(axis=1).max())
+    return total
+
+
+def _bilinear(image, pts):
+    r, c = pts[..., 0], pts[..., 1]
+    r0 = np.clip(np.floor(r).astype(np.intp), 0, image.shape[0] - 2)
+    c0 = np.clip(np.floor(c).astype(np.intp), 0, image.shape[1] - 2)
+    fr, fc = r - r0, c - c0
+    return ((1 - fr) * (1 - fc) * image[r0, c0] + (1 - fr) * fc * image[r0, c0 + 1]
+            + fr * (1 - fc) * image[r0 + 1, c0] + fr * fc * image[r0 + 1, c0 + 1])
 
 
 def _decide_pair(cid, pa, pb, centre, overlap, col_a, col_b, min_sep):
@@ -136,4 +214,4 @@ def _decide_pair(cid, pa, pb, centre, overlap, col_a, col_b, min_sep):
     db = float(np.linalg.norm(overlap - col_b))
     over = oa if da <= db else ob
     conf = float(np.clip(abs(db - da) / sep, 0.0, 1.0))
-    return CrossingDecision(cid, centre, (oa, ob), over, conf, sep, spans)
+    return CrossingDecision(cid, centre, (oa, ob), over, conf, sep, spans, 'colour')

@@ -2,7 +2,8 @@
 
 Each object gets its own colour, a ring at its start with its id, arrows along its direction of travel
 and a square at its end. At a crossing with a decided order the upper object is drawn again over the
-lower one and a white ring marks the crossing; an undecided crossing (same colours) gets a '?'. A legend
+lower one and a ring marks the crossing (white: decided from colour; yellow with its confidence in
+percent: decided from occlusion edges); an undecided crossing gets a '?'. A legend
 lists every object's length and width and explains the marks; with a metric mapping a scale bar is drawn.
 """
 from __future__ import annotations
@@ -75,6 +76,10 @@ def draw_overlay(image_bgr: np.ndarray, objects: list, crossings: list, metres_p
         if c.over is None:
             cv2.putText(out, '?', (centre[0] + 4 * unit, centre[1] - 4 * unit), cv2.FONT_HERSHEY_SIMPLEX,
                         font_scale * 1.3, (255, 255, 255), unit + 1, cv2.LINE_AA)
+        elif getattr(c, 'cue', 'colour') == 'edges':
+            cv2.circle(out, centre, 3 * unit, (0, 230, 255), unit, cv2.LINE_AA)
+            cv2.putText(out, f'{100 * c.confidence:.0f}', (centre[0] + 4 * unit, centre[1] - 4 * unit),
+                        cv2.FONT_HERSHEY_SIMPLEX, font_scale, (0, 230, 255), unit, cv2.LINE_AA)
         else:
             cv2.circle(out, centre, 3 * unit, (255, 255, 255), unit, cv2.LINE_AA)
     # legend
@@ -91,9 +96,11 @@ def draw_overlay(image_bgr: np.ndarray, objects: list, crossings: list, metres_p
                     cv2.LINE_AA)
         y += 16 * unit
     n_dec = sum(1 for c in crossings if c.over is not None)
+    n_edges = sum(1 for c in crossings if c.over is not None and getattr(c, 'cue', 'colour') == 'edges')
     lines = ['ring + id: start of a path, square: its end, arrows: its direction',
-             f'crossings: {len(crossings)}; white ring: over/under decided from colour ({n_dec}),',
-             f'  upper path drawn on top; ?: order undecided, e.g. same colour ({len(crossings) - n_dec})']
+             f'crossings: {len(crossings)}; over/under from colour: white ring ({n_dec - n_edges}), from',
+             f'  occlusion edges: yellow ring + confidence % ({n_edges}); upper path drawn on top;',
+             f'  ?: order undecided ({len(crossings) - n_dec})']
     for text in lines:
         cv2.putText(out, text, (8 * unit, y), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (255, 255, 255), unit,
                     cv2.LINE_AA)

@@ -88,3 +88,21 @@ def read_pattern_file(path) -> np.ndarray:
     if len(pts) < 2:
         raise PathFileError(f'{path}: a pattern needs at least two points')
     return np.array(pts)
+
+
+def deployed_order(points_xy: np.ndarray, closed: bool, start_near=None) -> np.ndarray:
+    """One perceived path as the contract's deployed shape (ordered from the first deployed end): as
+    given, or from the end nearest to ``start_near`` (x, y); a closed path (first point repeated at the
+    end) is rolled to start, and end, at its point nearest to ``start_near``."""
+    pts = np.asarray(points_xy, float)
+    if start_near is None:
+        return pts
+    q = np.asarray(start_near, float)
+    if closed:
+        body = pts[:-1] if len(pts) > 1 and np.allclose(pts[0], pts[-1]) else pts
+        k = int(np.argmin(np.hypot(*(body - q).T)))
+        body = np.roll(body, -k, axis=0)
+        return np.vstack([body, body[:1]])
+    if np.linalg.norm(pts[-1] - q) < np.linalg.norm(pts[0] - q):
+        return pts[::-1].copy()
+    return pts

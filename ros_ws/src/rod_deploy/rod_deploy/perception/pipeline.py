@@ -19,7 +19,8 @@ sub-pixel refinement.
     colour facing each other across at most ``max_gap_factor`` w are joined (a rod cut by the shadow of
     the rod above it, a pen skip), and across up to ``max_hidden_factor`` w if the stretch between them
     is covered by the mask (a rod hidden under another one along a length);
- 5. over/under at every crossing from colour where the strands differ (:mod:`.crossing_order`);
+ 5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
+    (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary, arc-length resampling every ``step_px``.
 
@@ -43,7 +44,7 @@ from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig
                                                 segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
-from rod_deploy.perception.traversal import join_gaps, split_at_colour_changes, trace_objects
+from rod_deploy.perception.traversal import drop_shadow_strands, join_gaps, split_at_colour_changes, trace_objects
 
 
 class PerceptionError(ValueError):
@@ -96,11 +97,13 @@ class PerceptionResult:
     timings_ms: dict = field(default_factory=dict)
 
     def summary(self) -> str:
-        decided = sum(1 for c in self.crossings if c.over is not None)
+        colour = sum(1 for c in self.crossings if c.over is not None and c.cue == 'colour')
+        edges = sum(1 for c in self.crossings if c.over is not None and c.cue == 'edges')
         return (f'{len(self.objects)} object(s), lengths '
                 f'{", ".join(f"{o.length_px():.0f}" for o in self.objects)} px, widths '
                 f'{", ".join(f"{o.width_px:.1f}" for o in self.objects)} px; {len(self.crossings)} crossing(s), '
-                f'{decided} with over/under decided from colour; segmentation {self.segmentation.describe()}')
+                f'over/under decided from colour at {colour}, from occlusion edges at {edges}; segmentation '
+                f'{self.segmentation.describe()}')
 
 
 def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -> PerceptionResult:
@@ -172,6 +175,10 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     if not traced:
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
+    if len(traced) > 1:
+        dist = cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
+        traced = drop_shadow_strands(traced, colour_full.lab_at, lambda p: _lookup(dist, p),
+                                     config.min_colour_separation)
     t3 = time.perf_counter()
     timings['graph'] = (t3 - t2) * 1e3
 

@@ -334,3 +334,42 @@ def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
         if np.mean(spread < 1.5 * min_separation) < 0.8:
             return None
     return int(cut_at[j])
+
+
+def drop_shadow_strands(objects: list, lab_at, half_width_at, min_colour_separation: float,
+                        beside_factor: float = 2.5, min_beside_fraction: float = 0.5, min_inside_fraction: float = 0.8,
+                        min_darker: float = 20.0, max_shadow_factor: float = 12.0) -> list:
+    """Drop objects that are the shadow of a rod, or a sliver of one, lying along a longer object.
+
+    ``half_width_at(points)`` gives the object half-width there (the mask's distance to background on the
+    centreline), so h = its median along the longer object. A shorter object is dropped when at least
+    ``min_inside_fraction`` of its points lie within h + 1 px of the longer one's path (a strand inside
+    that rod: shading split its mask lengthwise), or when it is no longer than ``max_shadow_factor`` h (a
+    shadow cast by the raised part of a rod at a crossing, not a rod lying alongside), at least
+    ``min_beside_fraction`` of it lies within ``beside_factor`` h and it is darker by ``min_darker`` (CIELAB L*) or of clearly another colour (a*b*
+    farther apart than ``min_colour_separation``): on a light table a rod's shadow is foreground too and,
+    where it is wide enough, leaves its own skeleton beside the rod. ``lab_at(points)`` -> (n, 3) CIELAB."""
+    if len(objects) < 2:
+        return objects
+    from scipy.spatial import cKDTree
+    order = sorted(range(len(objects)), key=lambda i: -objects[i].length_px())
+    sub = {i: objects[i].points[::max(1, len(objects[i].points) // 60)] for i in order}
+    colours = {i: median0(lab_at(sub[i])) for i in order}
+    drop = set()
+    for rank, i in enumerate(order):
+        pts = objects[i].points
+        for j in order[:rank]:
+            if j in drop:
+                continue
+            h = float(np.median(half_width_at(sub[j])))
+            d, _ = cKDTree(objects[j].points).query(pts, distance_upper_bound=beside_factor * h + 1.0)
+            if np.mean(d <= h + 1.0) >= min_inside_fraction:
+                drop.add(i)
+                break
+            if np.mean(np.isfinite(d)) < min_beside_fraction or objects[i].length_px() > max_shadow_factor * h:
+                continue
+            ci, cj = colours[i], colours[j]
+            if ci[0] < cj[0] - min_darker or np.linalg.norm(ci[1:] - cj[1:]) > min_colour_separation:
+                drop.add(i)
+                break
+    return [o for k, o in enumerate(objects) if k not in drop]
