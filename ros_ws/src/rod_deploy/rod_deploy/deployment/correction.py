@@ -20,12 +20,16 @@ where ``sigma_floor`` (default 0.5 mm) is the accuracy below which shapes are no
 settings): a deployment matching the declared model within it leaves nothing to explain. The best subset is added
 when it lowers BIC by more than ``bic_threshold`` (10: strong evidence), its parameters fitted on the first
 ``1 - holdout_fraction`` of the curve also lower the residual on the held-out rest, and one confirming simulation
-with the fitted parameters lowers the residual sum of squares by at least ``min_rss_drop`` (a second Gauss-Newton
-step with the same sensitivities is tried if the first falls short).
+with the fitted parameters lowers the residual sum of squares by at least ``min_rss_drop`` with the same strong BIC
+evidence. Candidates are confirmed best linearised BIC first, within ``max_confirmations`` simulations; one whose
+first step falls short gets a second step with Broyden-updated sensitivities (the response is not linear over the
+range of real errors).
 
-Replanning (:func:`replan`): the planner takes the fitted L_gb directly; a natural curvature or a lower friction are
-not in its model (they only enter the prediction). The replanned trajectory is simulated with the fitted rod and kept
-only if it is predicted to deploy better than the original one. (Pre-compensating the pattern against the predicted
+Replanning (:func:`replan`, only when an effect was added): the planner takes the fitted L_gb directly; a natural
+curvature or a lower friction are not in its model (they only enter the prediction). The replanned trajectory is
+simulated with the fitted rod and kept only if it is predicted to deploy better than the original one; if not, and
+L_gb was fitted, the planner's L_gb on the other side of the declared one is tried (the planner has its own bias in
+L_gb on short rods, which the fitted model shows). (Pre-compensating the pattern against the predicted
 deviation was tried and made a naturally curved rod's deployment worse: the planner's response to a pattern moved by
 a few mm is not that shift.)
 """
@@ -107,6 +111,7 @@ class CorrectionSettings:
     bic_threshold: float = 10.0            # strong evidence
     holdout_fraction: float = 1.0 / 3.0    # the end of the curve, never fitted, must improve too
     min_rss_drop: float = 0.2              # the confirming simulation must lower RSS by this fraction
+    max_confirmations: int = 3             # simulations spent confirming linearised candidates
 
     def validate(self):
         unknown = [e for e in self.effects if e not in EFFECTS]
@@ -232,7 +237,7 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
     fit_rows = np.zeros((settings.n_points, 2), bool)
     fit_rows[:n_fit] = True
     fit_rows = fit_rows.ravel()
-    best = None
+    passing = []
     for k in range(1, len(effects) + 1):
         for subset in itertools.combinations(range(len(effects)), k):
             Js = J[:, subset]
@@ -248,36 +253,62 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                     'holdout_rms_before_m': math.sqrt(held_before / rh.size),
                     'holdout_rms_after_m': math.sqrt(held_after / rh.size)}
             out.candidates.append(cand)
-            if bic - bic0 < -settings.bic_threshold and held_after < held_before and (
-                    best is None or bic < best[0]):
-                best = (bic, subset, theta, cand)
-    if best is None:
+            if bic - bic0 < -settings.bic_threshold and held_after < held_before:
+                passing.append((bic, subset, theta, cand))
+    if not passing:
         out.simulations = model.count
         out.warnings.append(f'the deployed shape differs from the declared model by {1e3 * out.rms_before_m:.2f} mm '
                             f'RMS, but no candidate effect explains it (BIC with a {1e3 * settings.noise_floor_m:g} mm '
                             f'noise floor, held-out end of the curve)')
         return out
-    # -- confirm with the simulator (and one more Gauss-Newton step with the same sensitivities if needed)
-    _, subset, theta, cand = best
-    Js = J[:, subset]
-    values = {effects[j].key: effects[j].clip(effects[j].nominal(rod) + v, rod) for j, v in zip(subset, theta)}
-    tries = []
-    for attempt in range(2):
-        fitted_rod = rod_with(rod, values)
-        d = model.deployed(fitted_rod, 'fitted rod' if attempt == 0 else 'fitted rod, second step')
-        r = (obs - sample(d, s)).ravel()
-        tries.append((float(r @ r), dict(values), fitted_rod, d))
-        if r @ r <= (1.0 - settings.min_rss_drop) * rss0:
+    # -- confirm with the simulator, best linearised BIC first, within a budget of simulations; each candidate
+    #    gets a second step (Broyden-updated sensitivities) when its first falls short and the budget allows
+    passing.sort(key=lambda c: c[0])
+    budget = settings.max_confirmations
+    confirmed = None
+    for _, subset, theta, cand in passing:
+        if budget <= 0:
             break
-        step, _ = _lstsq(Js, r)
-        values = {effects[j].key: effects[j].clip(values[effects[j].key] + v, rod) for j, v in zip(subset, step)}
-    rss1, values, fitted_rod, fitted_xy = min(tries, key=lambda x: x[0])
+        Js = J[:, subset].copy()
+        nominal = np.array([effects[j].nominal(rod) for j in subset])
+        clip = lambda v: np.array([effects[j].clip(x, rod) for j, x in zip(subset, v)])  # noqa: E731
+        x_prev, r_prev = nominal, r0
+        x = clip(nominal + theta)
+        tries = []
+        for attempt in range(2):
+            if budget <= 0:
+                break
+            values = {effects[j].key: float(v) for j, v in zip(subset, x)}
+            fitted_rod = rod_with(rod, values)
+            d = model.deployed(fitted_rod, f'fitted {", ".join(values)}' + (' (2nd step)' if attempt else ''))
+            budget -= 1
+            r = (obs - sample(d, s)).ravel()
+            rss = float(r @ r)
+            tries.append((rss, values, fitted_rod, d))
+            if rss <= (1.0 - settings.min_rss_drop) * rss0:
+                break
+            dx = x - x_prev
+            if np.any(dx):
+                Js += np.outer((r_prev - r) - Js @ dx, dx) / float(dx @ dx)       # Broyden
+            step, _ = _lstsq(Js, r)
+            x_prev, r_prev, x = x, r, clip(x + step)
+        if not tries:
+            break
+        best = min(tries, key=lambda t_: t_[0])
+        cand['confirmed_rss_drop'] = 1.0 - best[0] / rss0
+        cand['confirmed_bic_change'] = _bic(best[0], n, len(subset), floor2) - bic0
+        if (best[0] <= (1.0 - settings.min_rss_drop) * rss0
+                and cand['confirmed_bic_change'] < -settings.bic_threshold):
+            confirmed = (subset, cand, best)
+            break
     out.simulations = model.count
-    if rss1 > (1.0 - settings.min_rss_drop) * rss0:
-        out.warnings.append(f'the linearised fit suggested {", ".join(cand["effects"])}, but the simulation with the '
-                            f'fitted parameters lowers the residual only by {100 * (1 - rss1 / rss0):.0f} % '
-                            f'(at least {100 * settings.min_rss_drop:.0f} % required): nothing added')
+    if confirmed is None:
+        tried = [', '.join(c[3]['effects']) for c in passing if 'confirmed_rss_drop' in c[3]]
+        out.warnings.append(f'the linearised fit suggested {" or ".join(tried) or "an effect"}, but simulations '
+                            f'with the fitted parameters do not lower the residual by {100 * settings.min_rss_drop:.0f}'
+                            f' % with strong evidence: nothing added')
         return out
+    subset, cand, (rss1, values, fitted_rod, fitted_xy) = confirmed
     # -- report per effect: error before/after as each is added in the order of its own evidence
     nominal_e = eq17_error(pattern_xy, nominal_xy, directed=True)
     fitted_e = eq17_error(pattern_xy, fitted_xy, directed=True)
@@ -289,7 +320,8 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
             'parameters': {e.key: values[e.key], f'{e.key}_declared': e.nominal(rod)},
             'evidence': (f'residual (observed - simulated) {1e3 * math.sqrt(rss0 / n):.2f} -> '
                          f'{1e3 * math.sqrt(rss1 / n):.2f} mm RMS with the fitted {", ".join(cand["effects"])} '
-                         f'(confirmed by simulation); linearised: residual sum of squares '
+                         f'(confirmed by simulation: BIC change {cand["confirmed_bic_change"]:.1f}); linearised: '
+                         f'residual sum of squares '
                          f'{100 * cand["rss_drop"]:.1f} % lower, BIC change {cand["bic_change"]:.1f} (threshold '
                          f'-{settings.bic_threshold:g}, noise floor {1e3 * settings.noise_floor_m:g} mm); held-out '
                          f'last {100 * settings.holdout_fraction:.0f} % of the curve {1e3 * cand["holdout_rms_before_m"]:.2f}'
@@ -316,25 +348,44 @@ class Replan:
     predicted_e_mean_cm: float | None
     original_predicted_e_mean_cm: float | None
     simulations: int
+    planner_L_gb_m: float | None          # the L_gb the planner was given (None: the original trajectory kept)
 
 
 def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_settings: PlannerSettings,
            sim_settings: SimulationSettings, simulate=True, progress=None) -> Replan:
     """The trajectory planned with the fitted rod; with ``simulate``, its deployment predicted by the fitted
-    simulator, and the original trajectory kept if that is predicted to do better (module doc)."""
+    simulator (module doc). When that is predicted no better than the original trajectory and L_gb was fitted,
+    the planner's L_gb is also tried on the other side of the declared one (declared^2 / fitted: the planner's own
+    bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included."""
     pattern_xy = np.asarray(pattern_xy, float)
-    planned = plan_trajectory(pattern_xy, diagnosis.rod, planner_settings)
+    rod = diagnosis.rod
+    planned = plan_trajectory(pattern_xy, rod, planner_settings)
     if not simulate:
-        return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0)
-    model = ForwardModel(Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])),
-                         sim_settings, progress)
-    d = model.deployed(diagnosis.rod, 'corrected plan, fitted rod')
-    e_new = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
+        return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0,
+                      rod.gravito_bending_length_m)
     e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
-    if e_new <= e_old:
-        return Replan(planned.t, planned.position, planned.quaternion, True, d, e_new, e_old, 1)
-    return Replan(deployment.t, deployment.position, deployment.quaternion, False, diagnosis.fitted_xy, e_old, e_old,
-                  1)
+    best = (e_old, deployment, diagnosis.fitted_xy, False, None)
+    knobs = [rod.gravito_bending_length_m]
+    declared = rod.gravito_bending_length_m
+    if 'L_gb_m' in diagnosis.fitted:
+        declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added if e['key'] == 'L_gb_m')
+        knobs.append(declared ** 2 / rod.gravito_bending_length_m)
+    count = 0
+    for k, planner_lgb in enumerate(knobs):
+        if k > 0 and best[3]:
+            break                                    # the fitted rod's plan already does better than the original
+        if k > 0:
+            planned = plan_trajectory(pattern_xy, rod_with(rod, {'L_gb_m': planner_lgb}), planner_settings)
+        model = ForwardModel(Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])),
+                             sim_settings, progress)
+        d = model.deployed(rod, f'corrected plan (planner L_gb {1e3 * planner_lgb:.1f} mm), fitted rod')
+        count += 1
+        e = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
+        if e < best[0]:
+            best = (e, Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])), d, True,
+                    planner_lgb)
+    e, dep, d, replanned, planner_lgb = best
+    return Replan(dep.t, dep.position, dep.quaternion, replanned, d, e, e_old, count, planner_lgb)
 
 
 def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment | None = None,
@@ -370,9 +421,10 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
         'noise_floor_mm': 1e3 * settings.noise_floor_m,
     }
     rp = None
-    if replan_trajectory:
+    if replan_trajectory and diag.effects_added:
         rp = replan(pattern_xy, diag, deployment, planner_settings, sim_settings, simulate, progress)
         report['replan'] = {'replanned': rp.replanned, 'original_predicted_e_mean_cm': rp.original_predicted_e_mean_cm,
+                            'planner_L_gb_m': rp.planner_L_gb_m,
                             'planner_models': ['L_gb_m'],
                             'not_in_the_planner': [k for k in diag.fitted if k != 'L_gb_m']}
         if not rp.replanned:
@@ -387,8 +439,11 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
             report['error_after'] = {'e_mean_cm': after['e_mean_cm'], 'sigma_cm': after['sigma_cm'],
                                      'coverage': after['coverage'],
                                      'source': 'the corrected trajectory simulated with the fitted rod'}
-        if not diag.effects_added:
-            report['warnings'].append('no effect added: the corrected trajectory is the declared rod\'s plan')
+    else:
+        report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
+                                 'coverage': before['coverage'], 'source': 'unchanged: no effect added'}
+        if replan_trajectory:
+            report['warnings'].append('no effect added: nothing to replan (no corrected trajectory written)')
     report['simulations'] = diag.simulations + (rp.simulations if rp else 0)
     report['wall_time_s'] = time.perf_counter() - t0
     return report, diag, rp
