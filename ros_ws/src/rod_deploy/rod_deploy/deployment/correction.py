@@ -11,19 +11,19 @@ Candidate effects (:data:`EFFECTS`), one parameter each: a natural (rest) curvat
 (``natural_curvature_per_m``, 0 declared), a wrong gravito-bending length (``L_gb_m``: a stiffer or softer rod lags or
 leads along the pattern and turns its bends with offsets that scale with L_gb), and a lower Coulomb friction
 (``friction``: the laid part creeps towards the gripper). Each costs one simulation with the parameter perturbed
-(finite-difference sensitivities J of the residual); every subset is fitted by linear least squares on them and
-scored by the Bayesian information criterion
+(finite-difference sensitivities J of the residual). Effects are added by forward selection, each scored by the
+Bayesian information criterion
 
     BIC_k = n ln((RSS_k + n sigma_floor^2) / n) + k ln n,   n = 2 n_points,
 
 where ``sigma_floor`` (default 0.5 mm) is the accuracy below which shapes are not told apart (perception, simulation
-settings): a deployment matching the declared model within it leaves nothing to explain. The best subset is added
-when it lowers BIC by more than ``bic_threshold`` (10: strong evidence), its parameters fitted on the first
-``1 - holdout_fraction`` of the curve also lower the residual on the held-out rest, and one confirming simulation
-with the fitted parameters lowers the residual sum of squares by at least ``min_rss_drop`` with the same strong BIC
-evidence. Candidates are confirmed best linearised BIC first, within ``max_confirmations`` simulations; one whose
-first step falls short gets a second step with Broyden-updated sensitivities (the response is not linear over the
-range of real errors).
+settings): a deployment matching the declared model within it leaves nothing to explain. The next effect is the one
+whose linear least-squares fit (jointly with those already added) lowers BIC most, by more than ``bic_threshold``
+(10: strong evidence), and whose parameters fitted on the first ``1 - holdout_fraction`` of the curve also lower
+the residual on the held-out rest; it is added only if a confirming simulation with the fitted parameters lowers
+the residual sum of squares by at least ``min_rss_drop`` with the same strong BIC evidence (a second step with
+Broyden-updated sensitivities is tried when the first falls short: the response is not linear over the range of
+real errors; at most ``max_confirmations`` confirming simulations in all).
 
 Replanning (:func:`replan`, only when an effect was added): the planner takes the fitted L_gb directly; a natural
 curvature or a lower friction are not in its model (they only enter the prediction). The replanned trajectory is
@@ -36,7 +36,6 @@ a few mm is not that shift.)
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -111,7 +110,7 @@ class CorrectionSettings:
     bic_threshold: float = 10.0            # strong evidence
     holdout_fraction: float = 1.0 / 3.0    # the end of the curve, never fitted, must improve too
     min_rss_drop: float = 0.2              # the confirming simulation must lower RSS by this fraction
-    max_confirmations: int = 3             # simulations spent confirming linearised candidates
+    max_confirmations: int = 4             # simulations spent confirming linearised candidates
 
     def validate(self):
         unknown = [e for e in self.effects if e not in EFFECTS]
@@ -231,106 +230,110 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
         h = e.step(rod)
         d = model.deployed(rod_with(rod, {e.key: e.nominal(rod) + h}), f'{e.key} + {h:.3g}')
         J[:, j] = (sample(d, s) - sample(nominal_xy, s)).ravel() / h
-    # -- every subset by BIC on the linearised model
-    bic0 = _bic(rss0, n, 0, floor2)
+    # -- forward selection: the effect whose linearised fit lowers BIC most (with the held-out check) is confirmed
+    #    by a simulation; once confirmed, the next effect must lower the confirmed BIC further, and so on
     n_fit = int(round((1.0 - settings.holdout_fraction) * settings.n_points))
     fit_rows = np.zeros((settings.n_points, 2), bool)
     fit_rows[:n_fit] = True
     fit_rows = fit_rows.ravel()
-    passing = []
-    for k in range(1, len(effects) + 1):
-        for subset in itertools.combinations(range(len(effects)), k):
-            Js = J[:, subset]
-            theta, rss = _lstsq(Js, r0)
-            bic = _bic(rss, n, k, floor2)
-            th_fit, _ = _lstsq(Js[fit_rows], r0[fit_rows])
-            rh = r0[~fit_rows]
-            held_before = float(rh @ rh)
-            held_after = float(np.sum((rh - Js[~fit_rows] @ th_fit) ** 2))
-            cand = {'effects': [effects[j].key for j in subset],
-                    'delta': {effects[j].key: float(v) for j, v in zip(subset, theta)},
-                    'rss_drop': 1.0 - rss / rss0, 'bic_change': bic - bic0,
-                    'holdout_rms_before_m': math.sqrt(held_before / rh.size),
+    selected, x_sel = [], np.zeros(0)               # effect indices and their fitted values
+    r_cur, rss_cur, bic_cur, xy_cur, rod_cur = r0, rss0, _bic(rss0, n, 0, floor2), nominal_xy, rod
+    rejected = set()
+    budget = settings.max_confirmations
+    stage_errors = []
+    while budget > 0:
+        ranked = []
+        for j in range(len(effects)):
+            if j in selected or j in rejected:
+                continue
+            cols = selected + [j]
+            Js = J[:, cols]
+            step, rss = _lstsq(Js, r_cur)
+            bic = _bic(rss, n, len(cols), floor2)
+            st_fit, _ = _lstsq(Js[fit_rows], r_cur[fit_rows])
+            rh = r_cur[~fit_rows]
+            held_before, held_after = float(rh @ rh), float(np.sum((rh - Js[~fit_rows] @ st_fit) ** 2))
+            cand = {'effects': [effects[k].key for k in cols], 'rss_drop': 1.0 - rss / rss_cur,
+                    'bic_change': bic - bic_cur, 'holdout_rms_before_m': math.sqrt(held_before / rh.size),
                     'holdout_rms_after_m': math.sqrt(held_after / rh.size)}
             out.candidates.append(cand)
-            if bic - bic0 < -settings.bic_threshold and held_after < held_before:
-                passing.append((bic, subset, theta, cand))
-    if not passing:
-        out.simulations = model.count
-        out.warnings.append(f'the deployed shape differs from the declared model by {1e3 * out.rms_before_m:.2f} mm '
-                            f'RMS, but no candidate effect explains it (BIC with a {1e3 * settings.noise_floor_m:g} mm '
-                            f'noise floor, held-out end of the curve)')
-        return out
-    # -- confirm with the simulator, best linearised BIC first, within a budget of simulations; each candidate
-    #    gets a second step (Broyden-updated sensitivities) when its first falls short and the budget allows
-    passing.sort(key=lambda c: c[0])
-    budget = settings.max_confirmations
-    confirmed = None
-    for _, subset, theta, cand in passing:
-        if budget <= 0:
+            if bic - bic_cur < -settings.bic_threshold and held_after < held_before:
+                ranked.append((bic, j, step, cand))
+        if not ranked:
             break
-        Js = J[:, subset].copy()
-        nominal = np.array([effects[j].nominal(rod) for j in subset])
-        clip = lambda v: np.array([effects[j].clip(x, rod) for j, x in zip(subset, v)])  # noqa: E731
-        x_prev, r_prev = nominal, r0
-        x = clip(nominal + theta)
-        tries = []
-        for attempt in range(2):
+        ranked.sort(key=lambda c: c[0])
+        accepted = False
+        for _, j, step, cand in ranked:
             if budget <= 0:
                 break
-            values = {effects[j].key: float(v) for j, v in zip(subset, x)}
-            fitted_rod = rod_with(rod, values)
-            d = model.deployed(fitted_rod, f'fitted {", ".join(values)}' + (' (2nd step)' if attempt else ''))
-            budget -= 1
-            r = (obs - sample(d, s)).ravel()
-            rss = float(r @ r)
-            tries.append((rss, values, fitted_rod, d))
-            if rss <= (1.0 - settings.min_rss_drop) * rss0:
+            cols = selected + [j]
+            Js = J[:, cols].copy()
+            x0 = np.concatenate([x_sel, [effects[j].nominal(rod)]])
+            clip = lambda v: np.array([effects[k].clip(x, rod) for k, x in zip(cols, v)])  # noqa: E731
+            x_prev, r_prev, x = x0, r_cur, clip(x0 + step)
+            tries = []
+            for attempt in range(2):
+                if budget <= 0:
+                    break
+                values = {effects[k].key: float(v) for k, v in zip(cols, x)}
+                trial_rod = rod_with(rod, values)
+                d = model.deployed(trial_rod, 'fitted ' + ', '.join(values) + (' (2nd step)' if attempt else ''))
+                budget -= 1
+                r = (obs - sample(d, s)).ravel()
+                tries.append((float(r @ r), x.copy(), r, trial_rod, d))
+                if r @ r <= (1.0 - settings.min_rss_drop) * rss_cur:
+                    break
+                dx = x - x_prev
+                if np.any(dx):
+                    Js += np.outer((r_prev - r) - Js @ dx, dx) / float(dx @ dx)       # Broyden
+                more, _ = _lstsq(Js, r)
+                x_prev, r_prev, x = x, r, clip(x + more)
+            if not tries:
                 break
-            dx = x - x_prev
-            if np.any(dx):
-                Js += np.outer((r_prev - r) - Js @ dx, dx) / float(dx @ dx)       # Broyden
-            step, _ = _lstsq(Js, r)
-            x_prev, r_prev, x = x, r, clip(x + step)
-        if not tries:
-            break
-        best = min(tries, key=lambda t_: t_[0])
-        cand['confirmed_rss_drop'] = 1.0 - best[0] / rss0
-        cand['confirmed_bic_change'] = _bic(best[0], n, len(subset), floor2) - bic0
-        if (best[0] <= (1.0 - settings.min_rss_drop) * rss0
-                and cand['confirmed_bic_change'] < -settings.bic_threshold):
-            confirmed = (subset, cand, best)
+            rss, x_best, r_best, rod_best, d_best = min(tries, key=lambda t_: t_[0])
+            bic = _bic(rss, n, len(cols), floor2)
+            cand['confirmed_rss_drop'] = 1.0 - rss / rss_cur
+            cand['confirmed_bic_change'] = bic - bic_cur
+            if rss <= (1.0 - settings.min_rss_drop) * rss_cur and bic - bic_cur < -settings.bic_threshold:
+                stage_errors.append((j, cand, rss_cur, rss, xy_cur, d_best))
+                selected, x_sel = cols, x_best
+                r_cur, rss_cur, bic_cur, xy_cur, rod_cur = r_best, rss, bic, d_best, rod_best
+                accepted = True
+                break
+            rejected.add(j)
+        if not accepted:
             break
     out.simulations = model.count
-    if confirmed is None:
-        tried = [', '.join(c[3]['effects']) for c in passing if 'confirmed_rss_drop' in c[3]]
-        out.warnings.append(f'the linearised fit suggested {" or ".join(tried) or "an effect"}, but simulations '
-                            f'with the fitted parameters do not lower the residual by {100 * settings.min_rss_drop:.0f}'
-                            f' % with strong evidence: nothing added')
+    if not selected:
+        tried = [', '.join(c['effects']) for c in out.candidates if 'confirmed_rss_drop' in c]
+        if tried:
+            out.warnings.append(f'the linearised fit suggested {" or ".join(tried)}, but simulations with the fitted '
+                                f'parameters do not lower the residual by {100 * settings.min_rss_drop:.0f} % with '
+                                f'strong evidence: nothing added')
+        else:
+            out.warnings.append(f'the deployed shape differs from the declared model by {1e3 * out.rms_before_m:.2f} '
+                                f'mm RMS, but no candidate effect explains it (BIC with a '
+                                f'{1e3 * settings.noise_floor_m:g} mm noise floor, held-out end of the curve)')
         return out
-    subset, cand, (rss1, values, fitted_rod, fitted_xy) = confirmed
-    # -- report per effect: error before/after as each is added in the order of its own evidence
-    nominal_e = eq17_error(pattern_xy, nominal_xy, directed=True)
-    fitted_e = eq17_error(pattern_xy, fitted_xy, directed=True)
-    for j in subset:
+    values = {effects[k].key: float(v) for k, v in zip(selected, x_sel)}
+    for j, cand, rss_b, rss_a, xy_b, xy_a in stage_errors:
         e = effects[j]
-        single = next(c for c in out.candidates if c['effects'] == [e.key])
         out.effects_added.append({
             'name': e.name, 'key': e.key,
             'parameters': {e.key: values[e.key], f'{e.key}_declared': e.nominal(rod)},
-            'evidence': (f'residual (observed - simulated) {1e3 * math.sqrt(rss0 / n):.2f} -> '
-                         f'{1e3 * math.sqrt(rss1 / n):.2f} mm RMS with the fitted {", ".join(cand["effects"])} '
-                         f'(confirmed by simulation: BIC change {cand["confirmed_bic_change"]:.1f}); linearised: '
-                         f'residual sum of squares '
-                         f'{100 * cand["rss_drop"]:.1f} % lower, BIC change {cand["bic_change"]:.1f} (threshold '
-                         f'-{settings.bic_threshold:g}, noise floor {1e3 * settings.noise_floor_m:g} mm); held-out '
-                         f'last {100 * settings.holdout_fraction:.0f} % of the curve {1e3 * cand["holdout_rms_before_m"]:.2f}'
-                         f' -> {1e3 * cand["holdout_rms_after_m"]:.2f} mm; alone: BIC change '
-                         f'{single["bic_change"]:.1f}'),
-            'error_before': {'residual_rms_mm': 1e3 * math.sqrt(rss0 / n),
-                             'model_e_mean_cm': nominal_e['e_mean_cm']},
-            'error_after': {'residual_rms_mm': 1e3 * math.sqrt(rss1 / n),
-                            'model_e_mean_cm': fitted_e['e_mean_cm']}})
+            'evidence': (f'residual (observed - simulated) {1e3 * math.sqrt(rss_b / n):.2f} -> '
+                         f'{1e3 * math.sqrt(rss_a / n):.2f} mm RMS when added (fitted with '
+                         f'{", ".join(cand["effects"])}; confirmed by simulation, BIC change '
+                         f'{cand["confirmed_bic_change"]:.1f}, threshold -{settings.bic_threshold:g}, noise floor '
+                         f'{1e3 * settings.noise_floor_m:g} mm); linearised: residual sum of squares '
+                         f'{100 * cand["rss_drop"]:.1f} % lower, BIC change {cand["bic_change"]:.1f}; held-out last '
+                         f'{100 * settings.holdout_fraction:.0f} % of the curve {1e3 * cand["holdout_rms_before_m"]:.2f}'
+                         f' -> {1e3 * cand["holdout_rms_after_m"]:.2f} mm'),
+            'error_before': {'residual_rms_mm': 1e3 * math.sqrt(rss_b / n),
+                             'model_e_mean_cm': eq17_error(pattern_xy, xy_b, directed=True)['e_mean_cm']},
+            'error_after': {'residual_rms_mm': 1e3 * math.sqrt(rss_a / n),
+                            'model_e_mean_cm': eq17_error(pattern_xy, xy_a, directed=True)['e_mean_cm']}})
+    fitted_rod, fitted_xy, rss1 = rod_cur, xy_cur, rss_cur
     out.fitted = values
     out.rod = fitted_rod
     out.fitted_xy = fitted_xy
