@@ -70,3 +70,28 @@ def test_elastic_forces_and_hessian_match_finite_differences_of_the_energy_with_
             fd2[i, j] = fd2[j, i] = (E(q + h * I[i] + h * I[j]) - E(q + h * I[i] - h * I[j])
                                      - E(q - h * I[i] + h * I[j]) + E(q - h * I[i] - h * I[j])) / (4 * h * h)
     assert np.max(np.abs(A - fd2)) < 2e-5 * np.max(np.abs(A))
+
+
+def test_the_rod_files_natural_curvature_turns_a_laid_rod_left():
+    """natural_curvature > 0 (rod YAML) turns left seen from above, for a rod laid as the planner lays it
+    (material director d1 vertical on the table; no gravity here, so the arc is the rest shape)."""
+    import dataclasses
+
+    from rod_deploy.deployment.simulate import material_parameters
+    from rod_deploy.planning.rod_description import RodDescriptionError, rod_description_from_dict
+    rod = rod_description_from_dict({'length': 0.3, 'radius': 0.002, 'L_gb': 0.034, 'natural_curvature': 5.0})
+    assert rod.natural_curvature_per_m == 5.0
+    with pytest.raises(RodDescriptionError, match='"natural_curvature" must be finite'):
+        rod_description_from_dict({'length': 0.3, 'radius': 0.002, 'L_gb': 0.034, 'natural_curvature': 'nan'})
+    for k0 in (5.0, -5.0):
+        curved = dataclasses.replace(rod, natural_curvature_per_m=k0)
+        params = dataclasses.replace(material_parameters(curved, 0.5, 0.0), gravity=(0.0, 0.0, 0.0), table=False)
+        x = np.c_[np.linspace(0.0, 0.3, 31), np.zeros(31), np.zeros(31)]
+        r = DiscreteElasticRod(x, params, d1_first=(0, 0, 1))
+        r.clamp_node(0)
+        r.clamp_node(1)
+        r.clamp_theta(0)
+        r.static_solve(tol=1e-12, max_iter=200, shift=1e-3)
+        y_end = r.nodes[-1, 1]
+        assert np.sign(y_end) == np.sign(k0) and abs(y_end) > 0.05          # a 0.3 m arc of radius 0.2 m
+        assert np.max(np.abs(r.nodes[:, 2])) < 1e-9                        # in the table's plane

@@ -327,8 +327,8 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                          f'{cand["confirmed_bic_change"]:.1f}, threshold -{settings.bic_threshold:g}, noise floor '
                          f'{1e3 * settings.noise_floor_m:g} mm); linearised: residual sum of squares '
                          f'{100 * cand["rss_drop"]:.1f} % lower, BIC change {cand["bic_change"]:.1f}; held-out last '
-                         f'{100 * settings.holdout_fraction:.0f} % of the curve {1e3 * cand["holdout_rms_before_m"]:.2f}'
-                         f' -> {1e3 * cand["holdout_rms_after_m"]:.2f} mm'),
+                         f'{100 * settings.holdout_fraction:.0f} % of the curve '
+                         f'{1e3 * cand["holdout_rms_before_m"]:.2f} -> {1e3 * cand["holdout_rms_after_m"]:.2f} mm'),
             'error_before': {'residual_rms_mm': 1e3 * math.sqrt(rss_b / n),
                              'model_e_mean_cm': eq17_error(pattern_xy, xy_b, directed=True)['e_mean_cm']},
             'error_after': {'residual_rms_mm': 1e3 * math.sqrt(rss_a / n),
