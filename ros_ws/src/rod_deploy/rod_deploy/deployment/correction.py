@@ -17,7 +17,8 @@ Bayesian information criterion
     BIC_k = n ln((RSS_k + n sigma_floor^2) / n) + k ln n,   n = 2 n_points,
 
 where ``sigma_floor`` (default 0.5 mm) is the accuracy below which shapes are not told apart (perception, simulation
-settings): a deployment matching the declared model within it leaves nothing to explain. The next effect is the one
+settings): a deployment matching the declared model within it leaves nothing to explain, and no further effect is
+added once the residual is within it. The next effect is the one
 whose linear least-squares fit (jointly with those already added) lowers BIC most, by more than ``bic_threshold``
 (10: strong evidence), and whose parameters fitted on the first ``1 - holdout_fraction`` of the curve also lower
 the residual on the held-out rest; it is added only if a confirming simulation with the fitted parameters lowers
@@ -68,7 +69,7 @@ class Effect:
     def step(self, rod: RodDescription) -> float:
         """Finite-difference step of the sensitivity (a clearly visible but moderate change)."""
         if self.key == 'natural_curvature_per_m':
-            return 0.1 / rod.gravito_bending_length_m          # a bend of radius 10 L_gb
+            return 0.2 / rod.gravito_bending_length_m          # a bend of radius 5 L_gb
         if self.key == 'L_gb_m':
             return 0.15 * rod.gravito_bending_length_m
         return -0.5 * rod.friction                             # towards too little friction
@@ -76,8 +77,8 @@ class Effect:
     def clip(self, value: float, rod: RodDescription) -> float:
         if self.key == 'L_gb_m':
             return float(np.clip(value, 0.3 * rod.gravito_bending_length_m, 3.0 * rod.gravito_bending_length_m))
-        if self.key == 'friction':
-            return float(np.clip(value, 0.02 * rod.friction, 5.0 * rod.friction))
+        if self.key == 'friction':                   # the effect is too little friction
+            return float(np.clip(value, 0.02 * rod.friction, rod.friction))
         return float(value)
 
 
@@ -241,7 +242,7 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
     rejected = set()
     budget = settings.max_confirmations
     stage_errors = []
-    while budget > 0:
+    while budget > 0 and rss_cur > n * floor2:          # within the noise floor: nothing left to explain
         ranked = []
         for j in range(len(effects)):
             if j in selected or j in rejected:
@@ -362,17 +363,18 @@ def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_set
     bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included."""
     pattern_xy = np.asarray(pattern_xy, float)
     rod = diagnosis.rod
+    if 'L_gb_m' not in diagnosis.fitted:             # nothing the planner models changed: its plan is the original
+        e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
+        return Replan(deployment.t, deployment.position, deployment.quaternion, False, diagnosis.fitted_xy, e_old,
+                      e_old, 0, None)
     planned = plan_trajectory(pattern_xy, rod, planner_settings)
     if not simulate:
         return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0,
                       rod.gravito_bending_length_m)
     e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
     best = (e_old, deployment, diagnosis.fitted_xy, False, None)
-    knobs = [rod.gravito_bending_length_m]
-    declared = rod.gravito_bending_length_m
-    if 'L_gb_m' in diagnosis.fitted:
-        declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added if e['key'] == 'L_gb_m')
-        knobs.append(declared ** 2 / rod.gravito_bending_length_m)
+    declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added if e['key'] == 'L_gb_m')
+    knobs = [rod.gravito_bending_length_m, declared ** 2 / rod.gravito_bending_length_m]
     count = 0
     for k, planner_lgb in enumerate(knobs):
         if k > 0 and best[3]:
@@ -430,9 +432,12 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
                             'planner_L_gb_m': rp.planner_L_gb_m,
                             'planner_models': ['L_gb_m'],
                             'not_in_the_planner': [k for k in diag.fitted if k != 'L_gb_m']}
-        if not rp.replanned:
+        if not rp.replanned and 'L_gb_m' in diag.fitted:
             report['warnings'].append('the trajectory replanned with the fitted rod is predicted to deploy worse than '
                                       'the original one, which is kept')
+        elif not rp.replanned:
+            report['warnings'].append('nothing the planner models was fitted: the corrected trajectory is the '
+                                      'original one')
         if [k for k in diag.fitted if k != 'L_gb_m']:
             report['warnings'].append('the planner does not model ' + ', '.join(k for k in diag.fitted if k != 'L_gb_m')
                                       + ': the corrected trajectory only uses the fitted L_gb; error_after is the '
