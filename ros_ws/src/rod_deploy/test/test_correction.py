@@ -61,6 +61,13 @@ def test_the_effect_that_made_the_deployment_is_named_and_fitted(stand_in, truth
     assert {'name', 'parameters', 'evidence', 'error_before', 'error_after'} <= set(e)
 
 
+def test_a_perceived_shape_may_start_at_either_end(stand_in):
+    observed = _stand_in(None, None, None, correction.rod_with(ROD, {'L_gb_m': 0.040})).deployed_xy
+    a = diagnose(PATTERN, ROD, stand_in, observed, FAST)
+    b = diagnose(PATTERN, ROD, stand_in, observed[::-1], FAST)
+    assert [e['key'] for e in b.effects_added] == ['L_gb_m'] and b.fitted == pytest.approx(a.fitted)
+
+
 def test_a_matching_deployment_adds_nothing_even_with_noise(stand_in):
     clean = _stand_in(None, None, None, ROD).deployed_xy
     for sigma in (0.0, 3e-4):

@@ -14,7 +14,8 @@ evidence, error_before, error_after; warnings), DIR/correction.png (prescribed v
 DIR/rod_fitted.yaml; with ``--replan`` DIR/traj_corrected.csv planned with the fitted rod, and with ``--simulate``
 its deployment predicted by the fitted simulator (error_after.e_mean_cm). Prints one summary line. The simulation
 settings must be those that produced a simulated deployment (defaults: those of ``rod-deploy simulate``); each
-simulation of a 0.9 m rod takes about a minute here, and the loop runs 2 + (number of effects) to 4 + effects.
+simulation of a 0.9 m rod takes 1-5 minutes here, and the loop runs 1 (nothing to explain) to 1 + (number of
+effects) + 4 (confirmations) + 2 (replanning) simulations.
 """
 from __future__ import annotations
 
