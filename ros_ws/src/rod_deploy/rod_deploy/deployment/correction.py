@@ -226,6 +226,9 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
         return out
     # -- sensitivities: one simulation per candidate effect
     effects = [EFFECTS[e] for e in settings.effects]
+    if any(e.step(rod) == 0 for e in effects):                # friction declared 0: it cannot be lower
+        out.warnings.append('the declared friction is 0: too little friction is not a candidate')
+        effects = [e for e in effects if e.step(rod) != 0]
     J = np.zeros((n, len(effects)))
     for j, e in enumerate(effects):
         h = e.step(rod)
