@@ -138,7 +138,9 @@ def run(args) -> int:
     added = ', '.join(f'{e["key"]} = {e["parameters"][e["key"]]:.4g}' for e in report['effects_added']) or 'none'
     after = report['error_after']
     print(f'rod-deploy correct: effects added: {added}; e_mean {report["error_before"]["e_mean_cm"]:.3f} cm -> '
-          + (f'{after["e_mean_cm"]:.3f} cm (predicted)' if after else 'not simulated (use --replan --simulate)')
+          + (f'{after["e_mean_cm"]:.3f} cm (predicted)' if after and after['source'].startswith('the corrected')
+             else 'unchanged (trajectory kept)' if after and rp is not None and not rp.replanned
+             else 'unchanged (no effect)' if after else 'not simulated (use --replan --simulate)')
           + f'; residual {report["error_before"]["residual_rms_mm"]:.2f} mm RMS; {report["simulations"]} '
             f'simulations, {report["wall_time_s"]:.0f} s; {files["report"]}')
     return 0

@@ -436,16 +436,20 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
                             'planner_models': ['L_gb_m'],
                             'not_in_the_planner': [k for k in diag.fitted if k != 'L_gb_m']}
         if not rp.replanned and 'L_gb_m' in diag.fitted:
-            report['warnings'].append('the trajectory replanned with the fitted rod is predicted to deploy worse than '
+            report['warnings'].append('the trajectory replanned with the fitted rod is predicted to deploy no better than '
                                       'the original one, which is kept')
         elif not rp.replanned:
             report['warnings'].append('nothing the planner models was fitted: the corrected trajectory is the '
                                       'original one')
         if [k for k in diag.fitted if k != 'L_gb_m']:
             report['warnings'].append('the planner does not model ' + ', '.join(k for k in diag.fitted if k != 'L_gb_m')
-                                      + ': the corrected trajectory only uses the fitted L_gb; error_after is the '
-                                        'fitted simulator\'s prediction')
-        if rp.predicted_xy is not None:
+                                      + ': the corrected trajectory only uses the fitted L_gb')
+        if not rp.replanned:
+            report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
+                                     'coverage': before['coverage'],
+                                     'source': 'unchanged: the original trajectory is kept',
+                                     'fitted_model_e_mean_cm': rp.predicted_e_mean_cm}
+        elif rp.predicted_xy is not None:
             after = eq17_error(pattern_xy, rp.predicted_xy, directed=True)
             report['error_after'] = {'e_mean_cm': after['e_mean_cm'], 'sigma_cm': after['sigma_cm'],
                                      'coverage': after['coverage'],
