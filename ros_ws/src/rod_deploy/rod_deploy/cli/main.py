@@ -7,7 +7,7 @@ import argparse
 import importlib
 import sys
 
-SUBCOMMAND_MODULES = ('grasp', 'perceive', 'plan', 'simulate', 'evaluate')
+SUBCOMMAND_MODULES = ('grasp', 'perceive', 'plan', 'simulate', 'evaluate', 'correct')
 
 
 class CliError(Exception):

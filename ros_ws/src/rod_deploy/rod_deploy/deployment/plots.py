@@ -61,3 +61,34 @@ def plot_deployment(path, result, pattern_xy=None, title=''):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_correction(path, pattern_xy, diagnosis, replan, report):
+    """The closed loop: prescribed vs deployed (observed, declared model, fitted model) and after the correction."""
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 5.2))
+    for ax in (a, b):
+        ax.plot(pattern_xy[:, 0], pattern_xy[:, 1], 'k-', lw=3, alpha=0.3, label='prescribed')
+    o, n, f = diagnosis.observed_xy, diagnosis.nominal_xy, diagnosis.fitted_xy
+    a.plot(o[:, 0], o[:, 1], '-', color='tab:blue', lw=1.6, label='deployed (observed)')
+    a.plot(n[:, 0], n[:, 1], '--', color='tab:gray', lw=1.0, label='simulated, declared rod')
+    if diagnosis.effects_added:
+        a.plot(f[:, 0], f[:, 1], ':', color='tab:orange', lw=1.4, label='simulated, fitted rod')
+    added = ', '.join(f'{e["key"]} = {e["parameters"][e["key"]]:.3g}' for e in diagnosis.effects_added) or 'none'
+    a.set_title(f'before: e_mean {report["error_before"]["e_mean_cm"]:.3f} cm; residual vs declared model '
+                f'{report["error_before"]["residual_rms_mm"]:.2f} mm RMS\neffects added: {added}', fontsize=9)
+    if replan is not None and replan.predicted_xy is not None:
+        p = replan.predicted_xy
+        b.plot(p[:, 0], p[:, 1], '-', color='tab:green', lw=1.6, label='corrected plan, fitted rod (predicted)')
+        b.set_title(f'after: e_mean {report["error_after"]["e_mean_cm"]:.3f} cm (predicted; '
+                    f'{"replanned" if replan.replanned else "original plan kept"})', fontsize=9)
+    else:
+        b.set_title('after: not simulated (--replan --simulate)', fontsize=9)
+    for ax in (a, b):
+        ax.set_aspect('equal', adjustable='datalim')
+        ax.set_xlabel('x [m]')
+        ax.set_ylabel('y [m]')
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

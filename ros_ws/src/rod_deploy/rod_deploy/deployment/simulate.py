@@ -33,6 +33,9 @@ from rod_deploy.planning.rod_description import RodDescription
 G = 9.81
 DEFAULT_DENSITY = 1180.0          # kg/m^3 (vinyl polysiloxane, the paper's rods), when the rod file gives none
 FRICTION_LEVELS = {'low': 0.2, 'medium': 0.5, 'high': 1.0}
+#: the rod's natural curvature (> 0 turning left once laid) as the material curvature kappa2: the gripper holds
+#: d1 = x_gripper, which the planner's frames turn vertical on the table, so an in-plane bend is a kappa2 = -kb . d1
+NATURAL_CURVATURE_SIGN = -1.0
 
 
 class DeploymentError(ValueError):
@@ -105,7 +108,8 @@ def material_parameters(rod: RodDescription, friction: float, damping_per_s: flo
     nu = 0.5
     return RodParameters(EI=EI, EA=E * A, GJ=EI / (1.0 + nu), rho_A=rho * A, radius=h, gravity=(0.0, 0.0, -G),
                          damping=rho * A * damping_per_s, table=True, friction=friction,
-                         friction_velocity=friction_velocity)
+                         friction_velocity=friction_velocity,
+                         natural_curvature=(0.0, NATURAL_CURVATURE_SIGN * rod.natural_curvature_per_m))
 
 
 def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,

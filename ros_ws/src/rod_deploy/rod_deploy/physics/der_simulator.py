@@ -23,7 +23,8 @@ BAND = 10
 
 @dataclass
 class RodParameters:
-    """Material and environment of a rod (isotropic, circular cross-section, straight at rest)."""
+    """Material and environment of a rod (isotropic, circular cross-section, straight at rest unless
+    ``natural_curvature`` is given)."""
 
     EI: float                    # bending stiffness k_b [N m^2]
     EA: float                    # stretching stiffness k_s [N]
@@ -36,12 +37,24 @@ class RodParameters:
     friction: float = 0.0        # Coulomb coefficient mu with the table
     contact_stiffness: float = None   # penalty stiffness per node [N/m]; default from the node weight
     friction_velocity: float = 1e-4   # regularisation of Coulomb friction [m/s]
+    natural_curvature: tuple = (0.0, 0.0)   # rest material curvature (kappa1, kappa2) [1/m], uniform along the rod
 
     @classmethod
     def dimensionless(cls, ks_bar, poisson=0.5, **kw):
         """EI = 1, EA = ks_bar, GJ = EI / (1 + nu), rho A = 1/2, g = 1 (lengths in L_gb, time in sqrt(L_gb / g))."""
         kw.setdefault('gravity', (0.0, 0.0, -1.0))
         return cls(EI=1.0, EA=float(ks_bar), GJ=1.0 / (1.0 + poisson), rho_A=0.5, **kw)
+
+
+def rest_curvatures(natural_curvature, voronoi_lengths):
+    """Discrete rest curvatures (N-1, 2) of a rod whose material curvature at rest is ``natural_curvature``
+    (kappa1, kappa2) [1/m]: 2 tan(phi / 2) with the turning angle phi = kappa l_i (the discrete curvature of a
+    polygon inscribed in the rest circle), None for a straight rod."""
+    k = np.asarray(natural_curvature, float)
+    if not np.any(k):
+        return None
+    phi = np.linalg.norm(k) * np.asarray(voronoi_lengths, float)
+    return (2.0 * np.tan(0.5 * phi) / np.linalg.norm(k))[:, None] * k[None, :]
 
 
 class _Banded:
@@ -125,6 +138,7 @@ class DiscreteElasticRod:
         self.fixed = np.zeros(self.ndof, bool)
         self._prescribed = {}          # dof index array -> callable(t) giving values
         self._stencil = de.stencil_dofs(self.n_edges)
+        self.kappa_rest = rest_curvatures(params.natural_curvature, self.voronoi)
         self._stretch = de.stretching_dofs(self.n_edges)
         g = np.asarray(params.gravity, float)
         self.gravity_force = np.zeros(self.ndof)
@@ -177,7 +191,7 @@ class DiscreteElasticRod:
         p = self.params
         d1, d2, _, rt = self._frames(q)
         Es, gs, Hs = de.stretching(q, self.rest_lengths, p.EA, hessian)
-        Eb, gb, Hb = de.bending(q, d1, d2, self.voronoi, p.EI, None, hessian)
+        Eb, gb, Hb = de.bending(q, d1, d2, self.voronoi, p.EI, self.kappa_rest, hessian)
         Et, gt, Ht = de.twisting(q, d1, d2, rt, self.voronoi, p.GJ, None, hessian)
         H = None
         if hessian:

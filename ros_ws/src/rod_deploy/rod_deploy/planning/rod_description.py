@@ -6,6 +6,7 @@ radius: 0.002        # h [m]
 L_gb: 0.034          # [m]; or loop_height: h_f [m] (L_gb = h_f / 0.9066); or youngs_modulus [Pa] with density [kg/m^3]
 friction: 0.5        # optional Coulomb coefficient with the table
 g: 9.81              # optional [m/s^2], used only with youngs_modulus/density
+natural_curvature: 0 # optional [1/m]: curvature of the rod at rest, in the table's plane once laid (> 0 turns left)
 ```
 """
 from dataclasses import dataclass
@@ -15,7 +16,9 @@ import yaml
 
 from .scaling import RodScales
 
-_KNOWN = {'length', 'radius', 'L_gb', 'loop_height', 'youngs_modulus', 'density', 'friction', 'g', 'name'}
+_KNOWN = {'length', 'radius', 'L_gb', 'loop_height', 'youngs_modulus', 'density', 'friction', 'g', 'name',
+          'natural_curvature'}
+_SIGNED = {'natural_curvature'}
 
 
 class RodDescriptionError(ValueError):
@@ -33,6 +36,7 @@ class RodDescription:
     youngs_modulus_pa: float = None
     density_kg_m3: float = None
     name: str = ''
+    natural_curvature_per_m: float = 0.0   # rest curvature, in the table's plane once laid (> 0 turns left)
 
     @property
     def scales(self):
@@ -68,7 +72,10 @@ def rod_description_from_dict(d, source='rod description'):
             v = float(d[key])
         except (TypeError, ValueError):
             raise RodDescriptionError(f'{source}: "{key}" must be a number, got {d[key]!r}') from None
-        if not math.isfinite(v) or (v <= 0 and key != 'friction') or v < 0:
+        if key in _SIGNED:
+            if not math.isfinite(v):
+                raise RodDescriptionError(f'{source}: "{key}" must be finite, got {d[key]!r}')
+        elif not math.isfinite(v) or (v <= 0 and key != 'friction') or v < 0:
             raise RodDescriptionError(f'{source}: "{key}" must be {"non-negative" if key == "friction" else "positive"}'
                                       f' and finite, got {d[key]!r}')
         values[key] = v
@@ -85,7 +92,8 @@ def rod_description_from_dict(d, source='rod description'):
     return RodDescription(length_m=values['length'], radius_m=values['radius'],
                           gravito_bending_length_m=scales.gravito_bending_length_m,
                           friction=values.get('friction'), youngs_modulus_pa=values.get('youngs_modulus'),
-                          density_kg_m3=values.get('density'), name=str(d.get('name', '')))
+                          density_kg_m3=values.get('density'), name=str(d.get('name', '')),
+                          natural_curvature_per_m=values.get('natural_curvature', 0.0))
 
 
 def load_rod_description(path):

@@ -1,0 +1,153 @@
+"""The deployment's closed loop (`rod-deploy correct`): effect selection on a cheap stand-in forward model, one
+real simulated deployment with a wrong L_gb, a clean deployment, and the CLI's errors."""
+import dataclasses
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rod_deploy.cli.main import main as cli
+from rod_deploy.deployment import correction
+from rod_deploy.deployment.correction import CorrectionSettings, Deployment, correct, diagnose
+from rod_deploy.deployment.metrics import eq17_error, write_deployed_csv
+from rod_deploy.deployment.simulate import SimulationSettings, simulate_deployment
+from rod_deploy.planning.rod_description import load_rod_description, rod_description_from_dict
+from rod_deploy.planning.trajectory import plan_trajectory
+
+ROD = rod_description_from_dict({'length': 0.3, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
+_a = np.linspace(0.0, 0.07 / 0.08, 30)
+#: 5 cm straight, then 7 cm of an arc of radius 8 cm
+PATTERN = np.vstack([np.column_stack([np.linspace(0, 0.05, 11)[:-1], np.zeros(10)]),
+                     np.column_stack([0.05 + 0.08 * np.sin(_a), 0.08 * (1 - np.cos(_a))])])
+FAST = SimulationSettings(edge_length_m=0.01, dt_s=0.1, max_gripper_speed_m_s=0.03, contact_tolerance_m=5e-4)
+
+
+# ------------------------------------------------------------------- the statistics, on a stand-in forward model
+def _stand_in(t, position, quaternion, rod, settings=None, progress=None):
+    """A cheap, smooth, nonlinear stand-in for the simulator: the pattern led along itself in proportion to
+    (L_gb - 3.4 cm), bent by the natural curvature, pulled back and shortened by too little friction."""
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(PATTERN, axis=0), axis=1))])
+    lead = 0.4 * (rod.gravito_bending_length_m - 0.034)             # a stiffer rod leads along the pattern
+    xy = np.column_stack([np.interp(s + lead, s, PATTERN[:, k]) for k in range(2)])
+    k0 = rod.natural_curvature_per_m
+    xy[:, 1] += 0.15 * k0 * s ** 2 * (1 + 0.3 * k0 * s)
+    mu = rod.friction
+    keep = s <= s[-1] * (1.0 - 0.2 * max(0.5 - mu, 0.0))
+    xy = xy[keep]
+    xy[:, 0] -= 0.15 * (0.5 - mu) * s[keep]
+    return SimpleNamespace(deployed_xy=xy)
+
+
+@pytest.fixture
+def stand_in(monkeypatch):
+    monkeypatch.setattr(correction, 'simulate_deployment', _stand_in)
+    return Deployment(np.zeros(2), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1)), tuple(PATTERN[0]))
+
+
+@pytest.mark.parametrize('truth, key, value', [
+    ({'natural_curvature_per_m': 2.0}, 'natural_curvature_per_m', 2.0),
+    ({'L_gb_m': 0.040}, 'L_gb_m', 0.040),
+    ({'friction': 0.2}, 'friction', 0.2),
+])
+def test_the_effect_that_made_the_deployment_is_named_and_fitted(stand_in, truth, key, value):
+    observed = _stand_in(None, None, None, correction.rod_with(ROD, truth)).deployed_xy
+    observed = observed + np.random.default_rng(1).normal(0.0, 1e-4, observed.shape)   # perception-like noise
+    d = diagnose(PATTERN, ROD, stand_in, observed, FAST)
+    assert [e['key'] for e in d.effects_added] == [key], d.candidates
+    assert d.fitted[key] == pytest.approx(value, rel=0.1)
+    assert d.rms_after_m < 0.3 * d.rms_before_m
+    e = d.effects_added[0]
+    assert {'name', 'parameters', 'evidence', 'error_before', 'error_after'} <= set(e)
+
+
+def test_a_perceived_shape_may_start_at_either_end(stand_in):
+    observed = _stand_in(None, None, None, correction.rod_with(ROD, {'L_gb_m': 0.040})).deployed_xy
+    a = diagnose(PATTERN, ROD, stand_in, observed, FAST)
+    b = diagnose(PATTERN, ROD, stand_in, observed[::-1], FAST)
+    assert [e['key'] for e in b.effects_added] == ['L_gb_m'] and b.fitted == pytest.approx(a.fitted)
+
+
+def test_a_matching_deployment_adds_nothing_even_with_noise(stand_in):
+    clean = _stand_in(None, None, None, ROD).deployed_xy
+    for sigma in (0.0, 3e-4):
+        observed = clean + np.random.default_rng(2).normal(0.0, sigma, clean.shape)
+        d = diagnose(PATTERN, ROD, stand_in, observed, FAST)
+        assert d.effects_added == [] and d.fitted == {}
+
+
+def test_an_unexplained_residual_adds_nothing_and_says_so(stand_in):
+    observed = _stand_in(None, None, None, ROD).deployed_xy.copy()
+    observed[:, 1] += 0.004 * np.sin(40 * observed[:, 0])              # wiggles no candidate makes
+    d = diagnose(PATTERN, ROD, stand_in, observed, FAST)
+    assert d.effects_added == [] and d.fitted == {}
+    assert len(d.warnings) == 1 and ('no candidate' in d.warnings[0] or 'nothing added' in d.warnings[0])
+
+
+# ----------------------------------------------------------------------------------- the real simulator
+def test_a_rod_stiffer_than_declared_is_diagnosed_and_the_corrected_plan_lays_it_better():
+    true_rod = dataclasses.replace(ROD, gravito_bending_length_m=0.045)
+    plan = plan_trajectory(PATTERN, ROD)
+    observed = simulate_deployment(plan.t, plan.position, plan.quaternion, true_rod, FAST).deployed_xy
+    report, diag, rp = correct(PATTERN, ROD, observed, Deployment(plan.t, plan.position, plan.quaternion,
+                                                                  tuple(PATTERN[0])),
+                               sim_settings=FAST, settings=CorrectionSettings(effects=('natural_curvature', 'L_gb')))
+    assert [e['key'] for e in report['effects_added']] == ['L_gb_m'], report['candidates']
+    assert report['parameters']['L_gb_m'] == pytest.approx(0.045, rel=0.15)
+    assert report['error_after']['e_mean_cm'] < report['error_before']['e_mean_cm']
+    # the corrected trajectory, deployed with the true rod, lays it better than the original
+    after = simulate_deployment(rp.t, rp.position, rp.quaternion, true_rod, FAST).deployed_xy
+    assert eq17_error(PATTERN, after)['e_mean_cm'] < 0.9 * eq17_error(PATTERN, observed)['e_mean_cm']
+
+
+def test_a_deployment_simulated_with_the_declared_rod_adds_nothing(tmp_path, capsys):
+    plan = plan_trajectory(PATTERN, ROD)
+    observed = simulate_deployment(plan.t, plan.position, plan.quaternion, ROD, FAST).deployed_xy
+    report, diag, rp = correct(PATTERN, ROD, observed, None, sim_settings=FAST, replan_trajectory=True)
+    assert report['effects_added'] == [] and rp is None
+    assert report['error_after']['e_mean_cm'] == report['error_before']['e_mean_cm']
+    assert report['simulations'] == 1                            # nothing beyond the noise floor to explain
+
+
+# ------------------------------------------------------------------------------------------------ the CLI
+def _files(tmp_path):
+    np.savetxt(tmp_path / 'p.txt', PATTERN)
+    (tmp_path / 'rod.yaml').write_text('length: 0.3\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    write_deployed_csv(tmp_path / 'd.csv', PATTERN)
+    return {'p': tmp_path / 'p.txt', 'rod': tmp_path / 'rod.yaml', 'd': tmp_path / 'd.csv', 'out': tmp_path / 'out',
+            'missing': tmp_path / 'nope.csv', 'bad': tmp_path / 'bad.csv'}
+
+
+@pytest.mark.parametrize('extra, words', [
+    (['--deployed', '{missing}'], 'cannot read deployed shape'),
+    (['--deployed', '{bad}'], 'header'),
+    (['--deployed', '{d}', '--effects', 'magnetism'], 'unknown effect(s) magnetism'),
+    (['--deployed', '{d}', '--simulate'], 'give --replan too'),
+    (['--deployed', '{d}', '--noise-floor-mm', '0'], '--noise-floor-mm must be positive'),
+])
+def test_cli_bad_input_is_one_error_line_and_writes_nothing(tmp_path, capsys, extra, words):
+    f = _files(tmp_path)
+    f['bad'].write_text('a,b\n1,2\n')
+    args = ['correct', '--pattern', str(f['p']), '--rod', str(f['rod']), '--out', str(f['out'])]
+    assert cli(args + [a.format(**f) for a in extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('rod-deploy correct: error: ') and words in err[0], err
+    assert not f['out'].exists()
+
+
+def test_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(correction, 'simulate_deployment', _stand_in)
+    f = _files(tmp_path)
+    observed = _stand_in(None, None, None, correction.rod_with(ROD, {'L_gb_m': 0.04})).deployed_xy
+    write_deployed_csv(f['d'], observed)
+    assert cli(['correct', '--pattern', str(f['p']), '--rod', str(f['rod']), '--deployed', str(f['d']),
+                '--out', str(f['out']), '--replan', '--simulate', '--quiet']) == 0
+    line = capsys.readouterr().out.strip().splitlines()
+    assert len(line) == 1 and 'L_gb_m = 0.04' in line[0] and 'e_mean' in line[0]
+    report = json.loads((f['out'] / 'report.json').read_text())
+    assert [e['key'] for e in report['effects_added']] == ['L_gb_m']
+    assert set(report) >= {'parameters', 'effects_added', 'warnings', 'error_before', 'error_after'}
+    for name in ('correction.png', 'rod_fitted.yaml', 'traj_corrected.csv'):
+        assert (f['out'] / name).exists()
+    fitted = load_rod_description(f['out'] / 'rod_fitted.yaml')          # a rod file the planner takes
+    assert fitted.gravito_bending_length_m == pytest.approx(0.04, rel=1e-3)
