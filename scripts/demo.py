@@ -6,7 +6,8 @@
 3. flex-ident identifies the loop's spring constants from the recording (report.json + plots) and compares them
    with the simulator's truth.
 4. The closed loop: MuJoCo records the small example loop with joint damping the model does not declare;
-   flex-ident identify --diagnose finds it, identifies it with the springs and reports the error before and after.
+   flex-ident identify (the closed loop is on by default) finds it, identifies it with the springs and reports the
+   error before and after.
 5. rod-deploy perceives a drawn pattern (a synthetic pen stroke of known centreline) into an ordered path in metres.
 6. rod-deploy solves the optimal grasp at the published test point (ls_bar 13.68, ks_bar 2087, kappa_bar 0.1).
 7. rod-deploy plans, from an image of a drawn circle, the gripper trajectory that lays the paper's rod #3 along it
@@ -115,7 +116,7 @@ def main():
           f"{report['wall_time_s']:.1f} s")
     print(f"  report and plots: {out / 'identification'}")
 
-    step('4. the closed loop: a recording with an effect nobody declared (flex-ident identify --diagnose)')
+    step('4. the closed loop: a recording with an effect nobody declared (flex-ident identify, on by default)')
     from robot_bridge.bagio.contract import write_joint_recording
     from robot_bridge.sim.mujoco_loop import Effects, MeasurementNoise, simulate_loop_experiment
     small = ROOT / 'bags' / 'example_loop6'
@@ -124,7 +125,7 @@ def main():
                                    noise=MeasurementNoise(2e-4, 5e-3, 0.1), effects=Effects(loop_damping_nms=0.05))
     write_joint_recording(out / 'damped_recording', rec.joint_recording())
     status = flex_ident_main(['identify', '--bag', str(out / 'damped_recording'), '--experiment',
-                              str(small / 'experiment.yaml'), '--out', str(out / 'diagnosis'), '--diagnose',
+                              str(small / 'experiment.yaml'), '--out', str(out / 'diagnosis'),
                               '--quiet', '--no-plots'])
     if status != 0:
         return status

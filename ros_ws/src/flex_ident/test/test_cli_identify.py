@@ -49,10 +49,10 @@ def test_identify_mcap_example_end_to_end(tmp_path, capsys):
     assert report['history'][0]['parameters'] == {'k_theta': 1.0, 'k_phi': 1.0}
 
 
-def test_diagnose_keeps_the_declared_model_on_the_clean_example(tmp_path, capsys):
+def test_diagnosis_is_on_by_default_and_keeps_the_declared_model_on_the_clean_example(tmp_path, capsys):
     out = tmp_path / 'out'
     assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
-                 '--out', str(out), '--quiet', '--no-plots', '--diagnose']) == 0
+                 '--out', str(out), '--quiet', '--no-plots']) == 0
     report = json.loads((out / 'report.json').read_text())
     assert report['effects_added'] == [] and 'declared_only' not in report
     assert report['diagnosis']['rounds'][0]['screening']           # every candidate was screened
@@ -69,9 +69,10 @@ def test_identify_sqlite3_bag_with_window_and_joint_cost(tmp_path):
     exp.write_text(text + '  window: [0.0, 7.0]\n')
     out = tmp_path / 'out'
     assert main(['identify', '--bag', str(bag), '--experiment', str(exp), '--out', str(out), '--quiet',
-                 '--cost', 'joint_angles']) == 0
+                 '--cost', 'joint_angles', '--no-diagnose']) == 0
     report = check_report(out)
     assert report['cost']['kind'] == 'joint_angles' and report['data']['samples'] == 701
+    assert 'diagnosis' not in report                    # --no-diagnose: the declared parameters only
 
 
 def test_run_identification_api_reports_progress(tmp_path):
@@ -109,7 +110,7 @@ def test_warm_start_on_doubling_windows_then_the_whole_recording(tmp_path):
 
     cold = tmp_path / 'cold'
     assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
-                 '--out', str(cold), '--quiet', '--no-continuation', '--no-plots']) == 0
+                 '--out', str(cold), '--quiet', '--no-continuation', '--no-plots', '--diagnose']) == 0
     cold_report = json.loads((cold / 'report.json').read_text())
     assert 'continuation' not in cold_report['data']
     assert cold_report['error_before'] == report['error_before']

@@ -2,11 +2,11 @@
 
     flex-ident identify --bag BAG --experiment EXP.yaml --out DIR [--method lm|lbfgsb|steepest]
                         [--cost end_effector|joint_angles] [--max-iterations N] [--no-continuation] [--no-plots]
-                        [--diagnose] [--quiet]
+                        [--no-diagnose] [--validation-fraction F] [--quiet]
     flex-ident request  --bag BAG --experiment EXP.yaml [--out DIR] [--timeout S]   (to a running
                         stiffness_identifier node: prints its report)
 
---diagnose closes the loop: after k_theta, k_phi are identified, the residual is screened for the effects the declared
+The closed loop is on by default (--no-diagnose: the declared parameters only): after k_theta, k_phi are identified, the residual is screened for the effects the declared
 model lacks (loop / arm viscous damping, arm Coulomb friction, torque sensor bias and gain, measurement delay); each
 statistically significant one (BIC on the time-correlated residual) is added and identified jointly with the
 declared parameters, and listed in the report's effects_added.
@@ -51,9 +51,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--no-continuation', action='store_true',
                    help='optimize on the whole recording at once (default: warm start on its first 2.5, 5, 10 ... s, '
                         'which keeps soft loops and wide motions out of local minima)')
-    p.add_argument('--diagnose', action='store_true',
-                   help='after identification, find, add and jointly identify the effects the declared model lacks '
-                        '(report: effects_added)')
+    p.add_argument('--no-diagnose', dest='diagnose', action='store_false', default=True,
+                   help='identify the declared parameters only (default: after identification, find, add and '
+                        'jointly identify the effects the declared model lacks; report: effects_added)')
+    p.add_argument('--diagnose', dest='diagnose', action='store_true',
+                   help='the default, accepted for compatibility')
     p.add_argument('--validation-fraction', type=float, default=0.3,
                    help='arm-only experiments: the last part of the window kept out of every fit and used to decide '
                         'which effects to add (default 0.3)')

@@ -50,7 +50,7 @@ class IdentificationSettings:
     plots: bool = True
     continuation: bool = True                   # warm start on the first 2.5 s, 5 s, 10 s, ... of the recording
     first_window_s: float = 2.5
-    diagnose: bool = False                      # closed loop: find, add and jointly identify missing effects
+    diagnose: bool = True                       # closed loop: find, add and jointly identify missing effects
     validation_fraction: float = 0.3            # arm-only experiments: last part of the window, never fitted
 
 
@@ -231,11 +231,11 @@ def warm_start(problem, p0, method, windows, progress: Progress | None = None):
 
 
 def run_identification(bag_path: str, experiment_path: str, out_dir: str, method: str = 'lm',
-                       progress: Callable[[dict], None] | None = None, diagnose: bool = False) -> dict:
+                       progress: Callable[[dict], None] | None = None, diagnose: bool = True) -> dict:
     """Identify the experiment's parameters from the bag; write ``out_dir/report.json`` (+ plots); return the report.
 
     method: 'lm' (Levenberg-Marquardt, default), 'lbfgsb' (L-BFGS-B with the adjoint gradient) or 'steepest' (the
-    paper's projected steepest descent with Armijo steps). diagnose: also run the closed loop (effects_added).
+    paper's projected steepest descent with Armijo steps). diagnose: run the closed loop (effects_added; default on).
     Raises ValueError subclasses on bad input.
     """
     settings = IdentificationSettings(method=method, diagnose=diagnose)
