@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from flex_ident.diagnosis.closed_loop import delta_bic, diagnose, effective_samples
-from flex_ident.diagnosis.effects import candidate_effects, reported_parameters, with_effect
+from flex_ident.diagnosis.effects import arm_joint_names, candidate_effects, reported_parameters, with_effect
 from flex_ident.identification.feedback import lqr_tracking_feedback
 from flex_ident.identification.measurement import uniform_grid
 from flex_ident.identification.optimizers import optimize
@@ -31,7 +31,8 @@ def model():
 
 def test_candidates_are_named_coefficients_and_terms(model):
     effects = {e.key: e for e in candidate_effects(model)}
-    assert set(effects) == {'loop_damping', 'arm_viscous', 'arm_coulomb', 'torque_bias', 'torque_gain', 'time_offset'}
+    assert set(effects) == {'loop_damping', 'arm_viscous', 'arm_coulomb', 'torque_bias', 'torque_gain', 'time_offset',
+                            'arm_viscous_per_joint', 'arm_coulomb_per_joint', 'loop_rest_angle'}
     n_loop = model.n - 7
     damped = with_effect(model, effects['loop_damping'])
     c = damped.coef_index('c_loop')
@@ -131,3 +132,62 @@ def test_arm_friction_torque_gain_and_bias_are_named(model, effects, key, parame
     assert added[0]['parameters'][parameter] == pytest.approx(value, abs=tol)
     k = added[-1]['declared_parameters_after']
     assert k['k_theta'] == pytest.approx(5.0, rel=0.05) and k['k_phi'] == pytest.approx(3.0, rel=0.05)
+
+
+def test_new_candidates_are_exact_model_terms_with_derivatives(model):
+    """Per-joint friction and the object's rest-angle offset: their coefficients act through model terms whose
+    derivatives (Lagrangian, equilibrium, forward sensitivities of the whole pipeline) match finite differences."""
+    from flex_ident.mechanics import tree_kinematics as tk
+    from flex_ident.mechanics.model import Spring
+    effects = {e.key: e for e in candidate_effects(model)}
+    assert {'arm_viscous_per_joint', 'arm_coulomb_per_joint', 'loop_rest_angle'} <= set(effects)
+    assert effects['arm_coulomb_per_joint'].replaces == 'arm_coulomb'
+    assert effects['arm_viscous_per_joint'].replaces == 'arm_viscous'
+    rest = effects['loop_rest_angle']
+    assert rest.coefficients == ('rest_theta_left', 'rest_phi_left', 'rest_theta_right', 'rest_phi_right')
+    m = with_effect(with_effect(model, rest), effects['arm_coulomb_per_joint'])
+    springs = [t for t in m.terms if isinstance(t, Spring)]
+    assert len(springs) == model.n - 7 and all(t.rest_coef >= 0 for t in springs)
+    assert sum(isinstance(t, CoulombFriction) for t in m.terms) == 7
+    assert all(isinstance(t, Spring) and t.rest_coef < 0 for t in model.terms if isinstance(t, Spring))   # untouched
+    # the Lagrangian's coefficient derivative
+    rng = np.random.default_rng(3)
+    coef = m.coef_values()
+    for name in rest.coefficients:
+        coef[m.coef_index(name)] = rng.uniform(-0.1, 0.1)
+    q, v, n, nc = 0.3 * rng.normal(size=m.n), rng.normal(size=m.n), m.n, len(coef)
+
+    def lq(c):
+        out = [np.zeros(n), np.zeros(n), np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, nc))]
+        tk.lagrangian_derivatives(m.kernel(), q, v, c, True, *out)
+        return out[0], out[-1]
+
+    Lq, dLq_dc = lq(coef)
+    fd = np.column_stack([(lq(coef + 1e-6 * e)[0] - lq(coef - 1e-6 * e)[0]) / 2e-6 for e in np.eye(nc)])
+    np.testing.assert_allclose(dLq_dc, fd, atol=1e-6 * np.max(np.abs(fd)))
+    # the whole pipeline (equilibrium -> simulation with feedback -> end-effector residual), 1.5 s of the example
+    from flex_ident.identification.measurement import load_measurements
+    data, _ = load_measurements(REPO / 'bags' / 'example_loop6' / 'bag', arm_joint_names(model), (0.0, 1.5))
+    free = ['k_theta', 'k_phi', 'rest_theta_left', 'rest_phi_right', 'f_arm_right_s1', 'f_arm_right_e1']
+    m = m.extended()
+    coef = m.coef_values()
+    q_guess = np.zeros(m.n)
+    q_guess[m.measured_coords] = data.theta[0]
+    eq = static_equilibrium(m, coef, q_guess)
+    fb = lqr_tracking_feedback(m, coef, eq.q, data.dt, horizon_steps=len(data.t_s))
+    problem = IdentificationProblem(m, data, free, [1e-3, 1e-3, -1, -1, 0, 0], [1e3, 1e3, 1, 1, 10, 10], fb,
+                                    substeps=1, max_substeps=1)
+    p = np.array([5.0, 3.0, 0.03, -0.02, 0.2, 0.4])
+    ev = problem.evaluate(p, jacobian=True)
+    assert ev.ok
+    fd = []
+    for i in range(len(p)):
+        step = 1e-6 * max(abs(p[i]), 1.0)
+        up, down = p.copy(), p.copy()
+        up[i] += step
+        down[i] -= step
+        fd.append((problem.evaluate(up).residual - problem.evaluate(down).residual).ravel() / (2 * step))
+    fd = np.array(fd).T
+    for i in range(len(p)):
+        assert np.max(np.abs(ev.jacobian[:, i] - fd[:, i])) < 1e-5 * np.max(np.abs(fd[:, i])) + 1e-12, free[i]
+    assert np.max(np.abs(fd[:, 2])) > 0 and np.max(np.abs(fd[:, 4])) > 0      # the rest angle and friction act

@@ -57,8 +57,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--diagnose', dest='diagnose', action='store_true',
                    help='the default, accepted for compatibility')
     p.add_argument('--validation-fraction', type=float, default=0.3,
-                   help='arm-only experiments: the last part of the window kept out of every fit and used to decide '
-                        'which effects to add (default 0.3)')
+                   help='the last part of the window kept out of every fit (default 0.3). Arm-only experiments: it '
+                        'decides which effects to add; loop recordings: each model along the closed loop is refitted '
+                        'without it and its error there is reported under "validation"')
     p.add_argument('--no-plots', action='store_true', help='write report.json only')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     from flex_ident.cli.request import register

@@ -120,6 +120,12 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
         report = identify_arm_only(bag_path, spec, out, settings.validation_fraction, settings.plots, progress)
         return IdentificationRun(report=report, model=None, problem=None, result=None, initial=None)
     experiment, model, problem, notes = prepare(bag_path, experiment_path, settings, progress)
+    if settings.diagnose:
+        from ..diagnosis.closed_loop import validation_split
+        try:
+            validation_split(problem, settings.validation_fraction)
+        except ValueError as exc:
+            raise IdentificationInputError(f'{exc} (--validation-fraction)') from None
     specs = experiment.identify.parameters
     p0 = np.array([p.initial for p in specs], float)
     max_iterations = settings.max_iterations or (experiment.identify.max_iterations if method == 'lm' else None)
@@ -164,7 +170,7 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     report = build_report(problem, result, initial, experiment, bag_path, method, notes,
                           wall_time_s=time.monotonic() - t_start)
     if settings.diagnose:
-        add_diagnosis(report, problem, result, progress)
+        add_diagnosis(report, problem, result, progress, initial, settings.validation_fraction)
     plots = []
     if settings.plots:
         from .plots import write_plots
@@ -177,24 +183,41 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     return IdentificationRun(report=report, model=model, problem=problem, result=result, initial=initial)
 
 
-def add_diagnosis(report: dict, problem, result, progress: Progress | None = None):
+def add_diagnosis(report: dict, problem, result, progress: Progress | None = None, initial=None,
+                  validation_fraction: float | None = 0.3):
     """The closed loop (``flex_ident.diagnosis``): effects_added, and the declared parameters and overall error
-    after the last added effect (the declared-only fit is kept under 'declared_only')."""
-    from ..diagnosis.closed_loop import diagnose
+    after the last added effect (the declared-only fit is kept under 'declared_only').
+
+    validation_fraction: the last part of the window held out; every model along the way is refitted on the rest
+    and its error on the held-out part goes under 'validation' in error_before / error_after (the overall ones and
+    each effect's; error_before's is the initial guess simulated over the whole window, nothing fitted)."""
+    from ..diagnosis.closed_loop import add_validation, diagnose
 
     _notify(progress, stage='diagnose', fraction=0.0)
+    t0 = time.monotonic()
     found = diagnose(problem, result.params, progress)
     report['effects_added'] = found['effects_added']
     report['diagnosis'] = {'rounds': found['rounds'], 'wall_time_s': found['wall_time_s'],
                            'all_parameters': found['parameters'], 'cost': found['cost'],
                            'declared_refit_on_diagnosis_cost': found['declared_refit']}
+    declared_error = report['error_after']
     if found['effects_added']:
         report['declared_only'] = {'parameters': report['parameters'], 'parameter_std': report['parameter_std'],
-                                   'error_after': report['error_after']}
+                                   'error_after': declared_error}
         last = found['effects_added'][-1]
         report['parameters'] = dict(last['declared_parameters_after'])
         report['parameter_std'] = {n: last['declared_parameter_std'].get(n) for n in problem.free}
         report['error_after'] = found['error_after']
+    if validation_fraction is not None:
+        validation = add_validation(found, problem, validation_fraction, found['_effects'],
+                                    dict(zip(problem.free, (float(v) for v in result.params))), progress)
+        declared_error['validation'] = validation['declared']
+        report['error_after']['validation'] = validation['final']
+        if initial is not None and initial.ok:
+            n_fit = validation['fitted_samples']
+            report['error_before']['validation'] = problem.cost.errors(initial.traj.q, slice(n_fit, None))
+        report['diagnosis']['validation'] = {k: validation[k] for k in ('fraction', 'from_s', 'fitted_samples')}
+    report['diagnosis']['wall_time_s'] = time.monotonic() - t0
 
 
 def warm_start_windows(data, first_window_s=2.5) -> list[float]:
