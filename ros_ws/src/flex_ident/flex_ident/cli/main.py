@@ -6,10 +6,14 @@
     flex-ident request  --bag BAG --experiment EXP.yaml [--out DIR] [--timeout S]   (to a running
                         stiffness_identifier node: prints its report)
 
-The closed loop is on by default (--no-diagnose: the declared parameters only): after k_theta, k_phi are identified, the residual is screened for the effects the declared
-model lacks (loop / arm viscous damping, arm Coulomb friction, torque sensor bias and gain, measurement delay); each
-statistically significant one (BIC on the time-correlated residual) is added and identified jointly with the
-declared parameters, and listed in the report's effects_added.
+The closed loop is on by default (--no-diagnose: the declared parameters only). Loop recordings: after k_theta,
+k_phi are identified, the residual is screened for the effects the declared model lacks (loop joint damping, arm
+viscous and Coulomb friction shared or per joint, torque sensor bias and gain, measurement delay, the object's
+rest-angle offset); each statistically significant one (BIC on the time-correlated residual) is added, identified
+jointly with the declared parameters and listed in the report's effects_added; every model along the way is also
+refitted without the last --validation-fraction of the window and measured there ("validation"); a final residual
+far above the noise the data shows is reported as a wrong model structure (warnings). Arm-only experiments (no
+object) run the torque-domain loop (always).
 
 Writes DIR/report.json (CONTRACTS.md section 3) and plots, shows a progress bar (tqdm, on stderr) and prints the
 identified parameters. On bad input it prints one line ``flex-ident: error: ...`` and exits with status 2, writing
@@ -148,6 +152,8 @@ def identify_command(args) -> int:
                'iterations': report['iterations'], 'wall_time_s': round(report['wall_time_s'], 2),
                'report': str((__import__('pathlib').Path(args.out) / 'report.json'))}
     print(json.dumps(summary, indent=2))
+    for warning in report.get('warnings', []):
+        print(f'flex-ident: warning: {warning}', file=sys.stderr)
     return 0
 
 

@@ -34,7 +34,7 @@ from scipy.interpolate import CubicSpline
 
 from ..identification.optimizers import levenberg_marquardt
 from ..identification.problem import IdentificationProblem, MeasuredData, ParameterTransform
-from ..identification.report import parameter_covariance
+from ..identification.report import hac_parameter_covariance
 from .effects import DELAY_PARAMETER, Effect, candidate_effects, describe, reported_parameters, with_effect
 
 BIC_STRONG = 10.0
@@ -258,7 +258,7 @@ def _entry(e: Effect, fitted, result, before, dbic, n_eff, drop, how: str, decla
     """One effects_added item (CONTRACTS.md section 3) from the joint fit that added effect ``e``."""
     ev = result.evaluation
     values = [result.params[fitted.free.index(n)] for n in e.coefficients]
-    std, _ = parameter_covariance(ev.jacobian, ev.residual)
+    std, _, _ = hac_parameter_covariance(ev.jacobian, ev.residual)
     std_map = dict(zip(fitted.free, std))
     return {
         'name': e.name, 'key': e.key,
@@ -404,7 +404,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
     if added:
         # every effect's parameters as identified jointly in the final model (the values when it was added are kept)
         final = dict(zip(final_free, (float(v) for v in current.params)))
-        std, _ = parameter_covariance(current.jacobian, current.residual)
+        std, _, _ = hac_parameter_covariance(current.jacobian, current.residual)
         std = dict(zip(final_free, (float(v) for v in std)))
         for entry, e in zip(added, state.effects):
             entry['parameters_when_added'] = entry['parameters']
@@ -415,6 +415,37 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
             'error_after': problem.cost.errors(current.traj.q), 'rounds': rounds, 'cost': problem.cost.kind,
             'declared_refit': dict(zip(problem.free, (float(v) for v in params))),
             'wall_time_s': time.monotonic() - t0, '_effects': list(state.effects)}
+
+
+NOISE_WINDOW_S = 0.1          # Savitzky-Golay window of the noise-level estimate (the motion is far slower)
+STRUCTURE_RATIO = 3.0         # final end-effector residual above this many times the data's noise: wrong model
+
+
+def measured_noise_level(base: IdentificationProblem) -> dict:
+    """The noise the measurement itself shows, with no model: the measured arm angles and the end-effector path
+    computed from them, minus their Savitzky-Golay smoothing (cubic, NOISE_WINDOW_S), corrected for the share of the
+    noise the smoother keeps (:func:`~.arm_torque.torque_noise_rms`). A model that explains the data leaves about
+    this much; ee_rms_m is comparable with the errors' ee_rms_m (RMS of the 3-D distance)."""
+    from .arm_torque import torque_noise_rms
+    w = max(5, int(round(NOISE_WINDOW_S / base.data.dt)) | 1)
+    ee = torque_noise_rms(base.cost.y_meas, w) * math.sqrt(base.cost.y_meas.shape[1])
+    joint = torque_noise_rms(base.cost.theta_meas, w)
+    return {'ee_rms_m': float(ee), 'joint_rms_rad': float(joint), 'window_samples': int(w)}
+
+
+def structure_warning(error_after: dict, noise: dict, effects_added: list) -> str | None:
+    """Plain words when the final model still leaves far more than the noise (STRUCTURE_RATIO) after the closed
+    loop: no candidate effect explains the rest, so the model's structure is wrong."""
+    ratio = error_after['ee_rms_m'] / max(noise['ee_rms_m'], 1e-12)
+    if ratio <= STRUCTURE_RATIO:
+        return None
+    named = (f'after adding {", ".join(e["key"] for e in effects_added)}' if effects_added
+             else 'and no candidate effect explains it')
+    return (f'the model structure looks wrong: the end-effector residual is {1e3 * error_after["ee_rms_m"]:.3g} mm, '
+            f'{ratio:.0f} times the noise the data itself shows ({1e3 * noise["ee_rms_m"]:.3g} mm), {named}. Check '
+            f'the experiment against the hardware (number of loop links, radius, mass, grasp and clamp poses, the '
+            f'arm description) or look for an effect outside the closed loop\'s library; the identified parameters '
+            f'of this model should not be trusted')
 
 
 def validation_split(base: IdentificationProblem, fraction: float) -> int:

@@ -73,7 +73,8 @@ def candidate_effects(model) -> list[Effect]:
     n = len(joints)
     out.append(Effect('arm_viscous', 'arm joint viscous friction (in addition to the URDF damping)', ('c_arm',),
                       (0.0,), (0.0,), (100.0,), True))
-    out.append(Effect('arm_viscous_per_joint', 'arm joint viscous friction, per joint (in addition to the URDF damping)',
+    out.append(Effect('arm_viscous_per_joint',
+                      'arm joint viscous friction, per joint (in addition to the URDF damping)',
                       tuple(f'c_arm_{j}' for j in joints), (0.0,) * n, (0.0,) * n, (100.0,) * n, True, 'arm_viscous'))
     out.append(Effect('arm_coulomb', 'arm joint Coulomb friction', ('f_arm',), (0.0,), (0.0,), (100.0,), True))
     out.append(Effect('arm_coulomb_per_joint', 'arm joint Coulomb friction, per joint',

@@ -191,7 +191,7 @@ def add_diagnosis(report: dict, problem, result, progress: Progress | None = Non
     validation_fraction: the last part of the window held out; every model along the way is refitted on the rest
     and its error on the held-out part goes under 'validation' in error_before / error_after (the overall ones and
     each effect's; error_before's is the initial guess simulated over the whole window, nothing fitted)."""
-    from ..diagnosis.closed_loop import add_validation, diagnose
+    from ..diagnosis.closed_loop import add_validation, diagnose, measured_noise_level, structure_warning
 
     _notify(progress, stage='diagnose', fraction=0.0)
     t0 = time.monotonic()
@@ -217,6 +217,12 @@ def add_diagnosis(report: dict, problem, result, progress: Progress | None = Non
             n_fit = validation['fitted_samples']
             report['error_before']['validation'] = problem.cost.errors(initial.traj.q, slice(n_fit, None))
         report['diagnosis']['validation'] = {k: validation[k] for k in ('fraction', 'from_s', 'fitted_samples')}
+    noise = measured_noise_level(problem)
+    report['diagnosis']['measured_noise'] = noise
+    warning = structure_warning(report['error_after'], noise, found['effects_added'])
+    report['diagnosis']['model_structure_ok'] = warning is None
+    if warning:
+        report.setdefault('warnings', []).append(warning)
     report['diagnosis']['wall_time_s'] = time.monotonic() - t0
 
 
