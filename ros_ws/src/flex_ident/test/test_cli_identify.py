@@ -57,6 +57,7 @@ def test_diagnosis_is_on_by_default_and_keeps_the_declared_model_on_the_clean_ex
                  '--out', str(out), '--quiet', '--no-plots']) == 0
     report = json.loads((out / 'report.json').read_text())
     assert report['effects_added'] == [] and 'declared_only' not in report
+    assert report['diagnosis']['model_structure_ok'] and not report.get('warnings')    # the right model: no warning
     assert report['diagnosis']['rounds'][0]['screening']           # every candidate was screened
     validation = report['diagnosis']['validation']
     assert validation['fraction'] == 0.3 and validation['fitted_samples'] == 700

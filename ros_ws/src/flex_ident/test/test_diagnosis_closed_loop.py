@@ -191,3 +191,45 @@ def test_new_candidates_are_exact_model_terms_with_derivatives(model):
     for i in range(len(p)):
         assert np.max(np.abs(ev.jacobian[:, i] - fd[:, i])) < 1e-5 * np.max(np.abs(fd[:, i])) + 1e-12, free[i]
     assert np.max(np.abs(fd[:, 2])) > 0 and np.max(np.abs(fd[:, 4])) > 0      # the rest angle and friction act
+
+
+def test_noise_level_and_structure_warning():
+    """The noise the measurement shows (no model): white noise of known size on a slow path is recovered; a final
+    residual at that level raises no warning, one far above it says the model's structure is wrong."""
+    from types import SimpleNamespace
+
+    from flex_ident.diagnosis.closed_loop import measured_noise_level, structure_warning
+    rng = np.random.default_rng(1)
+    t = np.arange(1000) / 100.0
+    path = np.column_stack([0.1 * np.sin(0.8 * t), 0.05 * np.cos(1.1 * t), 0.02 * np.sin(0.3 * t)])
+    angles = np.column_stack([0.3 * np.sin(0.5 * t + k) for k in range(7)])
+    base = SimpleNamespace(data=SimpleNamespace(dt=0.01),
+                           cost=SimpleNamespace(y_meas=path + 1e-4 * rng.normal(size=path.shape),
+                                                theta_meas=angles + 2e-4 * rng.normal(size=angles.shape)))
+    noise = measured_noise_level(base)
+    assert noise['ee_rms_m'] == pytest.approx(1e-4 * np.sqrt(3), rel=0.1)
+    assert noise['joint_rms_rad'] == pytest.approx(2e-4, rel=0.1)
+    assert structure_warning({'ee_rms_m': 1.1 * noise['ee_rms_m']}, noise, []) is None
+    words = structure_warning({'ee_rms_m': 40 * noise['ee_rms_m']}, noise, [])
+    assert 'model structure looks wrong' in words and 'no candidate effect explains it' in words
+    assert 'number of loop links' in words
+
+
+@pytest.mark.slow
+def test_wrong_link_count_says_the_model_structure_is_wrong(tmp_path, capsys):
+    """The 6-link example bag identified with the 12-link experiment: the closed loop runs by default, nothing
+    explains the residual, and the report and the command line say that the model's structure is wrong; the right
+    experiment on the same bag gives no such warning (test_cli_identify)."""
+    import json
+
+    from flex_ident.cli.main import main
+    text = (REPO / 'bags' / 'example_loop12' / 'experiment.yaml').read_text()
+    exp = tmp_path / 'twelve_links.yaml'
+    exp.write_text(text.replace('urdf: baxter_right_arm.urdf',
+                                f'urdf: {REPO / "bags" / "example_loop12" / "baxter_right_arm.urdf"}'))
+    assert main(['identify', '--bag', str(REPO / 'bags' / 'example_loop6' / 'bag'), '--experiment', str(exp),
+                 '--out', str(tmp_path / 'out'), '--quiet', '--no-plots']) == 0
+    report = json.loads((tmp_path / 'out' / 'report.json').read_text())
+    assert report['diagnosis']['model_structure_ok'] is False
+    assert any('model structure looks wrong' in w for w in report['warnings'])
+    assert 'flex-ident: warning: the model structure looks wrong' in capsys.readouterr().err
