@@ -233,3 +233,24 @@ def test_wrong_link_count_says_the_model_structure_is_wrong(tmp_path, capsys):
     assert report['diagnosis']['model_structure_ok'] is False
     assert any('model structure looks wrong' in w for w in report['warnings'])
     assert 'flex-ident: warning: the model structure looks wrong' in capsys.readouterr().err
+
+
+def test_per_joint_dry_friction_is_named_per_joint_and_no_delay_is_invented(model):
+    """The issue's case: dry friction of different sizes on the seven joints and no delay. The per-joint friction
+    competes with the shared one (the BIC decides) and wins; the shared value's leftover is no longer taken for a
+    measurement delay; the largest and the smallest friction are told apart."""
+    from robot_bridge.sim.mujoco_loop import simulate_loop_experiment
+    coulomb = [0.6, 0.9, 0.3, 0.5, 0.1, 0.15, 0.05]
+    rec = simulate_loop_experiment(str(EXPERIMENT), duration_s=4.0, motion=SHORT_MOTION, seed=5,
+                                   effects={'arm_coulomb_nm': coulomb},
+                                   noise={'position_rad': 2e-4, 'velocity_rad_s': 5e-3, 'effort_nm': 0.1})
+    problem = _problem(model, rec)
+    fit = optimize(problem, np.array([4.0, 2.5]), 'lm')
+    candidates = [e for e in candidate_effects(model)
+                  if e.key in ('arm_coulomb', 'arm_coulomb_per_joint', 'time_offset', 'loop_damping')]
+    added = diagnose(problem, fit.params, candidates=candidates)['effects_added']
+    assert [e['key'] for e in added] == ['arm_coulomb_per_joint'], [e['key'] for e in added]
+    f = added[0]['parameters']
+    assert max(f, key=f.get) == 'f_arm_right_s1' and f['f_arm_right_s1'] > 3 * f['f_arm_right_w2']
+    k = added[0]['declared_parameters_after']
+    assert k['k_theta'] == pytest.approx(5.0, rel=0.03) and k['k_phi'] == pytest.approx(3.0, rel=0.03)
