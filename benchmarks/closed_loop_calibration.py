@@ -71,7 +71,8 @@ def markdown(rows, s, args, wall_s) -> str:
              'std (HAC) | truth within +-2 HAC std | truth within +-2 curvature std (mean std) | mean within +-2 HAC '
              'std |', '|---|---|---|---|---|---|---|---|']
     for name, v in s.items():
-        lines.append(f'| {name} | {v["mean"]:.4f} ({v["truth"]:g}) | {v["mean_error_pct"]:+.3f} | {v["spread_std"]:.4f} '
+        lines.append(f'| {name} | {v["mean"]:.4f} ({v["truth"]:g}) | {v["mean_error_pct"]:+.3f} | '
+                     f'{v["spread_std"]:.4f} '
                      f'| {v["mean_reported_std"]:.4f} | {100 * v["covered_hac"]:.0f} % | '
                      f'{100 * v["covered_curvature"]:.0f} % ({v["mean_curvature_std"]:.4f}) | '
                      f'{100 * v["spread_covered_hac"]:.0f} % |')

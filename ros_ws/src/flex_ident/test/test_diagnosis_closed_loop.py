@@ -20,6 +20,7 @@ from flex_ident.mechanics.static_equilibrium import static_equilibrium
 
 REPO = Path(__file__).resolve().parents[4]
 EXPERIMENT = REPO / 'bags' / 'example_loop6' / 'experiment.yaml'
+JOINT_NAMES = ['s0', 's1', 'e0', 'e1', 'w0', 'w1', 'w2']
 SHORT_MOTION = {'rest_s': 1.0, 'ramp_s': 1.0, 'end_rest_s': 0.5,
                 'amplitudes_rad': (0.06, 0.048, 0.072, 0.06, 0.09, 0.072, 0.15)}
 
@@ -239,9 +240,12 @@ def test_per_joint_dry_friction_is_named_per_joint_and_no_delay_is_invented(mode
     """The issue's case: dry friction of different sizes on the seven joints and no delay. The per-joint friction
     competes with the shared one (the BIC decides) and wins; the shared value's leftover is no longer taken for a
     measurement delay; the largest and the smallest friction are told apart."""
-    from robot_bridge.sim.mujoco_loop import simulate_loop_experiment
+    from robot_bridge.sim.mujoco_loop import SumOfSinesMotion, simulate_loop_experiment
     coulomb = [0.6, 0.9, 0.3, 0.5, 0.1, 0.15, 0.05]
-    rec = simulate_loop_experiment(str(EXPERIMENT), duration_s=4.0, motion=SHORT_MOTION, seed=5,
+    # every joint has to move for its friction to show: the benchmark's motion (the short one above barely moves
+    # the wrist, and a per-joint fit there runs into a local minimum)
+    motion = SumOfSinesMotion(amplitudes_rad=tuple(0.6 * np.asarray(SumOfSinesMotion().amplitudes_rad)))
+    rec = simulate_loop_experiment(str(EXPERIMENT), duration_s=6.0, motion=motion, seed=5,
                                    effects={'arm_coulomb_nm': coulomb},
                                    noise={'position_rad': 2e-4, 'velocity_rad_s': 5e-3, 'effort_nm': 0.1})
     problem = _problem(model, rec)
@@ -250,7 +254,12 @@ def test_per_joint_dry_friction_is_named_per_joint_and_no_delay_is_invented(mode
                   if e.key in ('arm_coulomb', 'arm_coulomb_per_joint', 'time_offset', 'loop_damping')]
     added = diagnose(problem, fit.params, candidates=candidates)['effects_added']
     assert [e['key'] for e in added] == ['arm_coulomb_per_joint'], [e['key'] for e in added]
-    f = added[0]['parameters']
-    assert max(f, key=f.get) == 'f_arm_right_s1' and f['f_arm_right_s1'] > 3 * f['f_arm_right_w2']
+    f, std = added[0]['parameters'], added[0]['coefficient_std']
+    # the joints that carry the motion come out in the right order, 0-40 % high (the smooth sign against MuJoCo's
+    # hard frictionloss, as for the shared value); the wrist's are poorly determined and their std says so
+    assert f['f_arm_right_s1'] > f['f_arm_right_s0'] > f['f_arm_right_e1'] > f['f_arm_right_e0']
+    for j in ('s0', 's1', 'e0', 'e1'):
+        assert f[f'f_arm_right_{j}'] == pytest.approx(coulomb[JOINT_NAMES.index(j)], rel=0.4), (j, f)
+    assert std['f_arm_right_w2'] > 5 * std['f_arm_right_e1']
     k = added[0]['declared_parameters_after']
-    assert k['k_theta'] == pytest.approx(5.0, rel=0.03) and k['k_phi'] == pytest.approx(3.0, rel=0.03)
+    assert k['k_theta'] == pytest.approx(5.0, rel=0.01) and k['k_phi'] == pytest.approx(3.0, rel=0.01)

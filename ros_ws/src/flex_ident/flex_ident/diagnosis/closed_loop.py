@@ -8,8 +8,9 @@ After the declared parameters are identified (``identify``), each round
    candidate's columns, made orthogonal to the current parameters' columns, predicts the drop of the residual sum of
    squares if that effect were added (a Rao score / Lagrange-multiplier test);
 2. **fits** the most promising candidates (all with a predicted drop of at least SCREEN_MIN_DROP, at most
-   FIT_CANDIDATES; the linear prediction is a ranking, not a verdict) jointly with the current parameters (the same Levenberg-Marquardt and
-   sensitivities as the declared identification, starting at the current optimum and the effect's null value);
+   FIT_CANDIDATES; the linear prediction is a ranking, not a verdict) jointly with the current parameters (the same
+   Levenberg-Marquardt and sensitivities as the declared identification, from the current optimum and the effect's
+   null value);
 3. **decides** with the Bayesian information criterion on the residual, with an effective sample count that accounts
    for the residual's correlation in time (simulated trajectories turn white measurement noise into smooth errors,
    so the raw sample count would make every effect look significant):
@@ -19,6 +20,14 @@ After the declared parameters are identified (``identify``), each round
    (rho_1: lag-one autocorrelation of the new model's residual, k: the effect's coefficient count). An effect is added
    when dBIC < -BIC_STRONG (strong evidence on Kass and Raftery's scale) *and* it removes at least MIN_RSS_DROP of the
    residual; rounds stop when no candidate passes. Clean data keeps the declared model.
+
+A per-joint friction whose shared variant is already in the model is fitted as its *replacement* (from the shared
+value, k counting only the extra coefficients), so the statistics decide between shared and per joint.
+
+After the loop (``identify.add_diagnosis``): every model along the way is refitted on the first part of the window
+and measured on the held-out rest (:func:`add_validation`); the final residual is compared with the noise the data
+itself shows (:func:`measured_noise_level`), and a residual far above it is reported as a wrong model structure
+(:func:`structure_warning`).
 
 Measured time offsets are no model term: :class:`TimeShiftedProblem` evaluates the problem on torques shifted in
 time by a spline and adds their finite-difference column to the residual Jacobian.
