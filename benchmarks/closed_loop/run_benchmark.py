@@ -109,9 +109,14 @@ def run_case(out: Path, name: str):
     expected = [expected] if isinstance(expected, str) else list(expected or [])
     row['correct'] = sorted(keys) == sorted(expected)
     row['k_within_2pct'] = row['k_error_pct'] <= 2.0
-    row['validation_ee_mm'] = {k: 1e3 * report[k]['validation']['ee_rms_m'] for k in ('error_before', 'error_after')}
+    row['validation_ee_mm'] = {k: 1e3 * (report[k]['validation']['ee_rms_m'] or float('nan'))
+                               for k in ('error_before', 'error_after')}
     row['warnings'] = report.get('warnings', [])
     return row
+
+
+def _mm(value) -> str:
+    return f'{value:.3f}' if value == value else 'failed (simulation)'
 
 
 def table(rows) -> str:
@@ -123,7 +128,7 @@ def table(rows) -> str:
                         for n, v in r['parameters'].items()) or '-'
         lines.append(f'| {r["case"]} | {", ".join(r["added"]) or "[]"} | {r["k_theta"]:.3f} | {r["k_phi"]:.3f} | '
                      f'{r["k_error_pct"]:.2f} ({r["declared_only_k_error_pct"]:.2f}) | {par} | {r["ee_rms_declared_mm"]:.3f} -> {r["ee_rms_after_mm"]:.3f} | '
-                     f'{r["validation_ee_mm"]["error_after"]:.3f} | {r["diagnosis_s"]:.0f} | '
+                     f'{_mm(r["validation_ee_mm"]["error_after"])} | {r["diagnosis_s"]:.0f} | '
                      f'{"yes" if r["correct"] and r["k_within_2pct"] else "NO"} |')
     return '\n'.join(lines)
 

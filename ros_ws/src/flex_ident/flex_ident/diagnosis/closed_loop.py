@@ -470,14 +470,15 @@ def validation_split(base: IdentificationProblem, fraction: float) -> int:
 def held_out_errors(state: State, base: IdentificationProblem, n_fit: int, max_iterations: int = 15) -> dict:
     """The model of ``state`` refitted on the first ``n_fit`` samples only (LM from the state's parameters), then
     simulated over the whole window: its errors on the held-out rest ('ee_rms_m', 'joint_rms_rad'), with the fitted
-    part's beside them ('fitted_part')."""
+    part's beside them ('fitted_part'). When that simulation fails (the refitted model leaves its valid region in
+    the held-out part), the errors are None and 'failure' says why."""
     fit_problem = state.problem(base.truncated(n_fit))
     result = levenberg_marquardt(fit_problem, fit_problem.start, max_iterations=max_iterations, rescue_above=None)
     full = state.problem(base)
     full.substeps = max(full.substeps, fit_problem.substeps)
     ev = full.evaluate(result.params if result.evaluation.ok else fit_problem.start)
     if not ev.ok:
-        return {'ee_rms_m': float('nan'), 'joint_rms_rad': float('nan'), 'failure': str(ev.failure)}
+        return {'ee_rms_m': None, 'joint_rms_rad': None, 'failure': str(ev.failure)}
     out = base.cost.errors(ev.traj.q, slice(n_fit, None))
     out['fitted_part'] = base.cost.errors(ev.traj.q, slice(0, n_fit))
     return out
@@ -500,7 +501,8 @@ def add_validation(found: dict, base: IdentificationProblem, fraction: float, ef
     for i, entry in enumerate(found['effects_added']):
         entry['error_before']['validation'] = figures[i]
         entry['error_after']['validation'] = figures[i + 1]
-        entry['lowers_validation_error'] = bool(figures[i + 1]['ee_rms_m'] < figures[i]['ee_rms_m'])
+        before, after = figures[i]['ee_rms_m'], figures[i + 1]['ee_rms_m']
+        entry['lowers_validation_error'] = None if before is None or after is None else bool(after < before)
     return {'declared': figures[0], 'final': figures[-1], 'fraction': float(fraction),
             'from_s': float(base.data.t_s[n_fit] - base.data.t_s[0]), 'fitted_samples': int(n_fit)}
 
