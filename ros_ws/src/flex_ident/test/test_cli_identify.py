@@ -132,7 +132,7 @@ def test_warm_start_on_doubling_windows_then_the_whole_recording(tmp_path):
 def test_identify_12_link_example_within_targets(tmp_path):
     out = tmp_path / 'out'
     assert main(['identify', '--bag', str(EXAMPLE12 / 'bag'), '--experiment', str(EXAMPLE12 / 'experiment.yaml'),
-                 '--out', str(out), '--quiet']) == 0
+                 '--out', str(out), '--quiet', '--no-diagnose']) == 0     # the identification's own targets
     report = check_report(out, tolerance=0.01)
     assert report['model']['coordinates'] == 31 and report['model']['constraints'] == 12
     assert report['wall_time_s'] < 60
@@ -297,7 +297,7 @@ def test_other_methods_honour_max_iterations_and_descend(tmp_path, method):
     out = tmp_path / method
     assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
                  '--out', str(out), '--quiet', '--no-plots', '--no-continuation', '--method', method,
-                 '--max-iterations', '3']) == 0
+                 '--max-iterations', '3', '--no-diagnose']) == 0
     report = json.loads((out / 'report.json').read_text())
     assert report['method'] == method
     assert 1 <= report['iterations'] <= 3
@@ -311,3 +311,11 @@ def test_max_iterations_must_be_positive(tmp_path, capsys):
                  '--out', str(tmp_path / 'o'), '--max-iterations', '0']) == 2
     assert '--max-iterations must be positive' in capsys.readouterr().err
     assert not (tmp_path / 'o' / 'report.json').exists()
+
+
+def test_validation_fraction_that_leaves_nothing_to_validate_is_refused(tmp_path, capsys):
+    out = tmp_path / 'out'
+    assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
+                 '--out', str(out), '--quiet', '--validation-fraction', '1.5']) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and err[0].startswith('flex-ident: error: validation fraction 1.5') and not out.exists()
