@@ -98,7 +98,8 @@ def with_links(path: Path, links: int) -> Path:
 
 def run(bag, exp, out, method='lm', max_iterations=None, continuation=True):
     t = time.perf_counter()
-    settings = IdentificationSettings(method=method, max_iterations=max_iterations, continuation=continuation)
+    settings = IdentificationSettings(method=method, max_iterations=max_iterations, continuation=continuation,
+                                      diagnose=False)       # the identification alone (closed loop off)
     rep = identify(bag, exp, out, settings).report
     return rep, time.perf_counter() - t
 

@@ -98,7 +98,7 @@ def whole_identification(name, repeats, plots):
 
     def run():
         reports.append(identify(ROOT / 'bags' / name / 'bag', ROOT / 'bags' / name / 'experiment.yaml', out,
-                                IdentificationSettings(plots=plots)).report)
+                                IdentificationSettings(plots=plots, diagnose=False)).report)
 
     t, _ = median_time(run, repeats)
     return t, reports[-1]
@@ -111,7 +111,7 @@ def cold_compile_seconds():
         code = ('import sys, time; t = time.perf_counter(); '
                 'from flex_ident.identification.identify import identify, IdentificationSettings; '
                 f'identify("{ROOT}/bags/example_loop6/bag", "{ROOT}/bags/example_loop6/experiment.yaml", '
-                f'"{cache}/out", IdentificationSettings(plots=False)); print(time.perf_counter() - t)')
+                f'"{cache}/out", IdentificationSettings(plots=False, diagnose=False)); print(time.perf_counter() - t)')
         t = time.perf_counter()
         subprocess.run([sys.executable, '-c', code], check=True, env=env, capture_output=True, text=True)
         return time.perf_counter() - t

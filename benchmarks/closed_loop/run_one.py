@@ -8,7 +8,7 @@ from flex_ident.identification.identify import IdentificationSettings, identify
 
 bag, exp, out = sys.argv[1:4]
 t0 = time.monotonic()
-run = identify(bag, exp, out, IdentificationSettings(plots=False))
+run = identify(bag, exp, out, IdentificationSettings(plots=False, diagnose=False))
 t1 = time.monotonic()
 res = diagnose(run.problem, run.result.params)
 print(json.dumps({'bag': bag, 'declared': run.report['parameters'], 'error_declared': run.report['error_after'],

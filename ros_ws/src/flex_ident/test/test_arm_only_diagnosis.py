@@ -92,3 +92,43 @@ def test_arm_only_bad_input(tmp_path, capsys):
     exp.write_text(exp.read_text().replace('right_w2', 'right_w9'))
     code, report = run(bag, exp, tmp_path / 'c' / 'out')
     assert code == 2 and report is None and 'right_w9' in capsys.readouterr().err
+
+
+def _one_error_line(capsys) -> str:
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith('flex-ident: error: '), lines
+    return lines[0]
+
+
+def test_arm_only_bad_input_more_cases(tmp_path, capsys):
+    """A joint missing from the bag, a URDF link with a negative mass, a window too short to validate and a
+    validation fraction outside its range: one error line naming the problem, exit 2, no report."""
+    import re
+    bag, exp = make_recording(tmp_path / 'a', seconds=3.0)
+    from robot_bridge.bagio.contract import read_joint_recording
+    rec = read_joint_recording(bag)
+    keep = [i for i, n in enumerate(rec.names) if n != 'right_e1']
+    write_joint_recording(tmp_path / 'a' / 'bag6', JointRecording(rec.t_s, [rec.names[i] for i in keep],
+                                                                  rec.position[:, keep], None, rec.effort[:, keep],
+                                                                  stamp0_ns=1_000_000_000))
+    code, report = run(tmp_path / 'a' / 'bag6', exp, tmp_path / 'a' / 'out')
+    assert code == 2 and report is None and 'right_e1' in _one_error_line(capsys)
+
+    text = URDF.read_text()
+    bad = re.sub(r'(<link name="right_lower_forearm">.*?<mass value=")([^"]+)"', r'\1-2.0"', text, count=1,
+                 flags=re.S)
+    assert bad != text
+    (tmp_path / 'bad.urdf').write_text(bad)
+    exp_bad = tmp_path / 'bad.yaml'
+    exp_bad.write_text(exp.read_text().replace(str(URDF), str(tmp_path / 'bad.urdf')))
+    code, report = run(bag, exp_bad, tmp_path / 'b' / 'out')
+    line = _one_error_line(capsys)
+    assert code == 2 and report is None and 'right_lower_forearm' in line and 'mass' in line
+
+    exp_short = tmp_path / 'short.yaml'
+    exp_short.write_text(exp.read_text() + 'identify:\n  window: [0.0, 0.5]\n')
+    code, report = run(bag, exp_short, tmp_path / 'c' / 'out')
+    assert code == 2 and report is None and 'short' in _one_error_line(capsys)
+
+    code, report = run(bag, exp, tmp_path / 'd' / 'out', '--validation-fraction', '0.95')
+    assert code == 2 and report is None and 'validation fraction' in _one_error_line(capsys)

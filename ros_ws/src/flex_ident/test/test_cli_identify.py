@@ -30,7 +30,9 @@ def check_report(out: Path, truth=(5.0, 3.0), tolerance=0.005):   # the README's
         assert abs(report['parameters'][name] - true) < tolerance * true, report['parameters']
         assert 0 < report['parameter_std'][name] < 0.05 * true
     for key in ('error_before', 'error_after'):
-        assert set(report[key]) == {'ee_rms_m', 'joint_rms_rad'}
+        assert {'ee_rms_m', 'joint_rms_rad'} <= set(report[key])
+        if 'diagnosis' in report:           # the closed loop also measures on the held-out last 30 % of the window
+            assert set(report[key]['validation']) >= {'ee_rms_m', 'joint_rms_rad'}
     assert report['error_after']['ee_rms_m'] < 0.1 * report['error_before']['ee_rms_m']
     assert report['effects_added'] == [] and report['iterations'] >= 1 and report['wall_time_s'] > 0
     assert PLOTS <= {p.name for p in out.iterdir()}
@@ -49,13 +51,21 @@ def test_identify_mcap_example_end_to_end(tmp_path, capsys):
     assert report['history'][0]['parameters'] == {'k_theta': 1.0, 'k_phi': 1.0}
 
 
-def test_diagnose_keeps_the_declared_model_on_the_clean_example(tmp_path, capsys):
+def test_diagnosis_is_on_by_default_and_keeps_the_declared_model_on_the_clean_example(tmp_path, capsys):
     out = tmp_path / 'out'
     assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
-                 '--out', str(out), '--quiet', '--no-plots', '--diagnose']) == 0
+                 '--out', str(out), '--quiet', '--no-plots']) == 0
     report = json.loads((out / 'report.json').read_text())
     assert report['effects_added'] == [] and 'declared_only' not in report
+    assert report['diagnosis']['model_structure_ok'] and not report.get('warnings')    # the right model: no warning
     assert report['diagnosis']['rounds'][0]['screening']           # every candidate was screened
+    validation = report['diagnosis']['validation']
+    assert validation['fraction'] == 0.3 and validation['fitted_samples'] == 700
+    assert validation['from_s'] == pytest.approx(7.0)
+    # the identified model, refitted on the first 7 s, predicts the last 3 s it never saw to the noise level (the
+    # initial guess does not): the held-out figure is close to the fitted part's
+    after, before = report['error_after']['validation'], report['error_before']['validation']
+    assert after['ee_rms_m'] < 1.5 * after['fitted_part']['ee_rms_m'] and after['ee_rms_m'] < 0.05 * before['ee_rms_m']
     assert json.loads(capsys.readouterr().out)['effects_added'] == []
 
 
@@ -69,9 +79,10 @@ def test_identify_sqlite3_bag_with_window_and_joint_cost(tmp_path):
     exp.write_text(text + '  window: [0.0, 7.0]\n')
     out = tmp_path / 'out'
     assert main(['identify', '--bag', str(bag), '--experiment', str(exp), '--out', str(out), '--quiet',
-                 '--cost', 'joint_angles']) == 0
+                 '--cost', 'joint_angles', '--no-diagnose']) == 0
     report = check_report(out)
     assert report['cost']['kind'] == 'joint_angles' and report['data']['samples'] == 701
+    assert 'diagnosis' not in report                    # --no-diagnose: the declared parameters only
 
 
 def test_run_identification_api_reports_progress(tmp_path):
@@ -109,7 +120,7 @@ def test_warm_start_on_doubling_windows_then_the_whole_recording(tmp_path):
 
     cold = tmp_path / 'cold'
     assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
-                 '--out', str(cold), '--quiet', '--no-continuation', '--no-plots']) == 0
+                 '--out', str(cold), '--quiet', '--no-continuation', '--no-plots', '--diagnose']) == 0
     cold_report = json.loads((cold / 'report.json').read_text())
     assert 'continuation' not in cold_report['data']
     assert cold_report['error_before'] == report['error_before']
@@ -121,7 +132,7 @@ def test_warm_start_on_doubling_windows_then_the_whole_recording(tmp_path):
 def test_identify_12_link_example_within_targets(tmp_path):
     out = tmp_path / 'out'
     assert main(['identify', '--bag', str(EXAMPLE12 / 'bag'), '--experiment', str(EXAMPLE12 / 'experiment.yaml'),
-                 '--out', str(out), '--quiet']) == 0
+                 '--out', str(out), '--quiet', '--no-diagnose']) == 0     # the identification's own targets
     report = check_report(out, tolerance=0.01)
     assert report['model']['coordinates'] == 31 and report['model']['constraints'] == 12
     assert report['wall_time_s'] < 60
@@ -286,7 +297,7 @@ def test_other_methods_honour_max_iterations_and_descend(tmp_path, method):
     out = tmp_path / method
     assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
                  '--out', str(out), '--quiet', '--no-plots', '--no-continuation', '--method', method,
-                 '--max-iterations', '3']) == 0
+                 '--max-iterations', '3', '--no-diagnose']) == 0
     report = json.loads((out / 'report.json').read_text())
     assert report['method'] == method
     assert 1 <= report['iterations'] <= 3
@@ -300,3 +311,11 @@ def test_max_iterations_must_be_positive(tmp_path, capsys):
                  '--out', str(tmp_path / 'o'), '--max-iterations', '0']) == 2
     assert '--max-iterations must be positive' in capsys.readouterr().err
     assert not (tmp_path / 'o' / 'report.json').exists()
+
+
+def test_validation_fraction_that_leaves_nothing_to_validate_is_refused(tmp_path, capsys):
+    out = tmp_path / 'out'
+    assert main(['identify', '--bag', str(EXAMPLE6 / 'bag'), '--experiment', str(EXAMPLE6 / 'experiment.yaml'),
+                 '--out', str(out), '--quiet', '--validation-fraction', '1.5']) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and err[0].startswith('flex-ident: error: validation fraction 1.5') and not out.exists()

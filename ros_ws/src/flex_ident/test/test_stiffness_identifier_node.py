@@ -42,7 +42,8 @@ class FakeIdentification:
         if not block:
             self.release.set()
 
-    def __call__(self, bag_path, experiment_path, out_dir, method='lm', progress=None, diagnose=False):
+    def __call__(self, bag_path, experiment_path, out_dir, method='lm', progress=None, diagnose=None):
+        assert isinstance(diagnose, bool)       # the node always says whether to run the closed loop
         self.calls.append((bag_path, experiment_path, out_dir, method) + (('diagnose',) if diagnose else ()))
         self.entered.set()
         for i in range(3):
@@ -95,11 +96,11 @@ def test_topic_request_runs_the_job_with_parameter_fallbacks(ros_context, wait_f
     listener.request_pub.publish(String(data=json.dumps({'bag': 'b', 'experiment': 'e.yaml'})))
     assert wait_for(lambda: listener.results)
     assert listener.results[-1] == REPORT
-    assert fake.calls == [('b', 'e.yaml', str(tmp_path / 'o'), 'adjoint')]
+    assert fake.calls == [('b', 'e.yaml', str(tmp_path / 'o'), 'adjoint', 'diagnose')]     # the closed loop by default
     listener.results.clear()
-    listener.request_pub.publish(String(data=json.dumps({'bag': 'b2', 'experiment': 'e.yaml', 'diagnose': True})))
+    listener.request_pub.publish(String(data=json.dumps({'bag': 'b2', 'experiment': 'e.yaml', 'diagnose': False})))
     assert wait_for(lambda: listener.results)
-    assert fake.calls[-1] == ('b2', 'e.yaml', str(tmp_path / 'o'), 'adjoint', 'diagnose')
+    assert fake.calls[-1] == ('b2', 'e.yaml', str(tmp_path / 'o'), 'adjoint')
     assert wait_for(lambda: 'done' in listener.values('state'))
     assert listener.values('stage').count('optimize') >= 1          # progress reached the status topic
     assert set(listener.levels()) == {DiagnosticStatus.OK}
@@ -116,7 +117,7 @@ def test_service_runs_with_current_parameters_and_refuses_while_busy(ros_context
     assert wait_for(lambda: DiagnosticStatus.WARN in listener.levels())
     fake.release.set()
     assert wait_for(lambda: listener.results)
-    assert fake.calls == [('bag_dir', 'exp.yaml', 'identification_bag_dir', 'lm')]
+    assert fake.calls == [('bag_dir', 'exp.yaml', 'identification_bag_dir', 'lm', 'diagnose')]
     assert wait_for(lambda: not node.busy)
     assert call_run(listener, wait_for).success  # free again
 

@@ -235,3 +235,19 @@ def test_shipped_example_bags_match_their_experiment_and_truth(name, links, samp
     grasp = sim.arm_grasp_pose(np.array(truth['q_start_rad']))
     np.testing.assert_allclose(grasp, exp.loop.rest_grasp(), atol=1e-9)   # the loop closes undeformed
     assert grasp[2, 2] < -0.999                                            # gripper points down
+
+
+@pytest.mark.parametrize('values, expected', [(['0.3'], 0.3), (['0.1', '0.2', '0.3', '0.4', '0.5', '0.6', '0.7'],
+                                                               [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7])])
+def test_cli_friction_takes_one_value_or_one_per_joint(monkeypatch, tmp_path, values, expected):
+    """--arm-coulomb / --arm-viscous: one value for every joint (as before) or one per arm joint."""
+    seen = {}
+
+    def fake(*args, effects=None, **kwargs):
+        seen['effects'] = effects
+        raise ValueError('stop here')
+
+    monkeypatch.setattr(mujoco_loop, 'simulate_loop_experiment', fake)
+    assert mujoco_loop.main(['--experiment', 'e.yaml', '--out', str(tmp_path / 'o'), '--arm-coulomb', *values,
+                             '--arm-viscous', *values]) == 1
+    assert seen['effects'].arm_coulomb_nm == expected and seen['effects'].arm_viscous_nms == expected

@@ -2,14 +2,18 @@
 
     flex-ident identify --bag BAG --experiment EXP.yaml --out DIR [--method lm|lbfgsb|steepest]
                         [--cost end_effector|joint_angles] [--max-iterations N] [--no-continuation] [--no-plots]
-                        [--diagnose] [--quiet]
+                        [--no-diagnose] [--validation-fraction F] [--quiet]
     flex-ident request  --bag BAG --experiment EXP.yaml [--out DIR] [--timeout S]   (to a running
                         stiffness_identifier node: prints its report)
 
---diagnose closes the loop: after k_theta, k_phi are identified, the residual is screened for the effects the declared
-model lacks (loop / arm viscous damping, arm Coulomb friction, torque sensor bias and gain, measurement delay); each
-statistically significant one (BIC on the time-correlated residual) is added and identified jointly with the
-declared parameters, and listed in the report's effects_added.
+The closed loop is on by default (--no-diagnose: the declared parameters only). Loop recordings: after k_theta,
+k_phi are identified, the residual is screened for the effects the declared model lacks (loop joint damping, arm
+viscous and Coulomb friction shared or per joint, torque sensor bias and gain, measurement delay, the object's
+rest-angle offset); each statistically significant one (BIC on the time-correlated residual) is added, identified
+jointly with the declared parameters and listed in the report's effects_added; every model along the way is also
+refitted without the last --validation-fraction of the window and measured there ("validation"); a final residual
+far above the noise the data shows is reported as a wrong model structure (warnings). Arm-only experiments (no
+object) run the torque-domain loop (always).
 
 Writes DIR/report.json (CONTRACTS.md section 3) and plots, shows a progress bar (tqdm, on stderr) and prints the
 identified parameters. On bad input it prints one line ``flex-ident: error: ...`` and exits with status 2, writing
@@ -51,12 +55,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--no-continuation', action='store_true',
                    help='optimize on the whole recording at once (default: warm start on its first 2.5, 5, 10 ... s, '
                         'which keeps soft loops and wide motions out of local minima)')
-    p.add_argument('--diagnose', action='store_true',
-                   help='after identification, find, add and jointly identify the effects the declared model lacks '
-                        '(report: effects_added)')
+    p.add_argument('--no-diagnose', dest='diagnose', action='store_false', default=True,
+                   help='identify the declared parameters only (default: after identification, find, add and '
+                        'jointly identify the effects the declared model lacks; report: effects_added)')
+    p.add_argument('--diagnose', dest='diagnose', action='store_true',
+                   help='the default, accepted for compatibility')
     p.add_argument('--validation-fraction', type=float, default=0.3,
-                   help='arm-only experiments: the last part of the window kept out of every fit and used to decide '
-                        'which effects to add (default 0.3)')
+                   help='the last part of the window kept out of every fit (default 0.3). Arm-only experiments: it '
+                        'decides which effects to add; loop recordings: each model along the closed loop is refitted '
+                        'without it and its error there is reported under "validation"')
     p.add_argument('--no-plots', action='store_true', help='write report.json only')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     from flex_ident.cli.request import register
@@ -145,6 +152,8 @@ def identify_command(args) -> int:
                'iterations': report['iterations'], 'wall_time_s': round(report['wall_time_s'], 2),
                'report': str((__import__('pathlib').Path(args.out) / 'report.json'))}
     print(json.dumps(summary, indent=2))
+    for warning in report.get('warnings', []):
+        print(f'flex-ident: warning: {warning}', file=sys.stderr)
     return 0
 
 

@@ -144,13 +144,21 @@ class PinocchioArm:
             Y[k] = R[self.idx_v]
         return Y
 
+    def link_of_joint(self, joint_id: int) -> str:
+        """The URDF link a Pinocchio joint moves (the first body frame on it; links fixed to it are lumped in)."""
+        for f in self.model.frames:
+            parent = f.parentJoint if hasattr(f, 'parentJoint') else f.parent
+            if f.type == self.pin.FrameType.BODY and parent == joint_id:
+                return f.name
+        return self.model.names[joint_id]
+
     def inertia_problems(self) -> list[str]:
         """Links whose URDF inertial data is not physically valid (mass <= 0, inertia not positive definite, or
         principal moments violating the triangle inequality)."""
         out = []
         for i in range(1, self.model.njoints):
             inertia = self.model.inertias[i]
-            name = self.model.names[i]
+            name = f'link {self.link_of_joint(i)} (joint {self.model.names[i]})'
             if inertia.mass <= 0:
                 out.append(f'{name}: mass {inertia.mass:g} kg')
                 continue

@@ -8,8 +8,9 @@ After the declared parameters are identified (``identify``), each round
    candidate's columns, made orthogonal to the current parameters' columns, predicts the drop of the residual sum of
    squares if that effect were added (a Rao score / Lagrange-multiplier test);
 2. **fits** the most promising candidates (all with a predicted drop of at least SCREEN_MIN_DROP, at most
-   FIT_CANDIDATES; the linear prediction is a ranking, not a verdict) jointly with the current parameters (the same Levenberg-Marquardt and
-   sensitivities as the declared identification, starting at the current optimum and the effect's null value);
+   FIT_CANDIDATES; the linear prediction is a ranking, not a verdict) jointly with the current parameters (the same
+   Levenberg-Marquardt and sensitivities as the declared identification, from the current optimum and the effect's
+   null value);
 3. **decides** with the Bayesian information criterion on the residual, with an effective sample count that accounts
    for the residual's correlation in time (simulated trajectories turn white measurement noise into smooth errors,
    so the raw sample count would make every effect look significant):
@@ -19,6 +20,14 @@ After the declared parameters are identified (``identify``), each round
    (rho_1: lag-one autocorrelation of the new model's residual, k: the effect's coefficient count). An effect is added
    when dBIC < -BIC_STRONG (strong evidence on Kass and Raftery's scale) *and* it removes at least MIN_RSS_DROP of the
    residual; rounds stop when no candidate passes. Clean data keeps the declared model.
+
+A per-joint friction whose shared variant is already in the model is fitted as its *replacement* (from the shared
+value, k counting only the extra coefficients), so the statistics decide between shared and per joint.
+
+After the loop (``identify.add_diagnosis``): every model along the way is refitted on the first part of the window
+and measured on the held-out rest (:func:`add_validation`); the final residual is compared with the noise the data
+itself shows (:func:`measured_noise_level`), and a residual far above it is reported as a wrong model structure
+(:func:`structure_warning`).
 
 Measured time offsets are no model term: :class:`TimeShiftedProblem` evaluates the problem on torques shifted in
 time by a spline and adds their finite-difference column to the residual Jacobian.
@@ -34,7 +43,7 @@ from scipy.interpolate import CubicSpline
 
 from ..identification.optimizers import levenberg_marquardt
 from ..identification.problem import IdentificationProblem, MeasuredData, ParameterTransform
-from ..identification.report import parameter_covariance
+from ..identification.report import hac_parameter_covariance
 from .effects import DELAY_PARAMETER, Effect, candidate_effects, describe, reported_parameters, with_effect
 
 BIC_STRONG = 10.0
@@ -119,6 +128,9 @@ class TimeShiftedProblem:
             minus = self._run(delay - DELAY_STEP_S, coefs, False)
             if plus.ok and minus.ok:
                 column = (plus.residual - minus.residual).ravel() / (2 * DELAY_STEP_S)
+            elif plus.ok or minus.ok:       # one shifted simulation failed (a stiff model): one-sided difference
+                column = ((plus.residual - ev.residual) if plus.ok else (ev.residual - minus.residual)).ravel() \
+                    / DELAY_STEP_S
             else:
                 column = np.full(ev.residual.size, np.nan)
             ev.jacobian = np.column_stack([ev.jacobian, column])
@@ -198,7 +210,7 @@ def score_screen(state: State, base: IdentificationProblem, candidates: list[Eff
             step, *_ = np.linalg.lstsq(Jp, -r, rcond=None)
         except np.linalg.LinAlgError:
             continue
-        if e.one_sided and np.any(step < 0):
+        if e.one_sided and not _replaces(state, e) and np.any(step < 0):
             drop = 0.0
         else:
             drop = float(-(2 * r @ (Jp @ step) + (Jp @ step) @ (Jp @ step)))
@@ -210,10 +222,30 @@ def score_screen(state: State, base: IdentificationProblem, candidates: list[Eff
     return out
 
 
+def _replaces(state: State, effect: Effect) -> Effect | None:
+    """The shared effect of the current model that the per-joint ``effect`` would replace, if any."""
+    for e in state.effects:
+        if effect.replaces and e.key == effect.replaces:
+            return e
+    return None
+
+
+def _replaced_state(state: State, base: IdentificationProblem, effect: Effect) -> State:
+    """The current model with its shared effect replaced, in place, by the per-joint ``effect`` at the shared value."""
+    shared = _replaces(state, effect)
+    value = float(state.params[state.free.index(shared.coefficients[0])])
+    values = dict(zip(state.free, (float(v) for v in state.params)))
+    values.update({c: value for c in effect.coefficients})
+    return _state_with(base, [effect if e.key == shared.key else e for e in state.effects], values)
+
+
 def fit_with(state: State, base: IdentificationProblem, effect: Effect, step=None, max_iterations: int = 20):
     """Joint fit of the current parameters and the effect's coefficients (LM), from the current optimum and the
     effect's null value, or from the score test's Gauss-Newton ``step`` when that is better (nonsmooth effects such as
-    Coulomb friction can stall in a poor local minimum from the null value)."""
+    Coulomb friction can stall in a poor local minimum from the null value). A per-joint effect whose shared variant
+    is in the model replaces it and starts from the shared value."""
+    if _replaces(state, effect) is not None:
+        return _fit_state(_replaced_state(state, base, effect), base)
     problem = state.problem(base, [effect])
     start = problem.start
     if step is not None:
@@ -238,7 +270,7 @@ def _entry(e: Effect, fitted, result, before, dbic, n_eff, drop, how: str, decla
     """One effects_added item (CONTRACTS.md section 3) from the joint fit that added effect ``e``."""
     ev = result.evaluation
     values = [result.params[fitted.free.index(n)] for n in e.coefficients]
-    std, _ = parameter_covariance(ev.jacobian, ev.residual)
+    std, _, _ = hac_parameter_covariance(ev.jacobian, ev.residual)
     std_map = dict(zip(fitted.free, std))
     return {
         'name': e.name, 'key': e.key,
@@ -309,7 +341,8 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
     added, rounds, dropped_any = [], [], False
     final_free = list(problem.free)
     for round_no in range(max_rounds):
-        remaining = [c for c in pool if c.key not in {e.key for e in state.effects}]
+        keys = {e.key for e in state.effects} | {e.replaces for e in state.effects}
+        remaining = [c for c in pool if c.key not in keys]
         if not remaining:
             break
         if progress:
@@ -330,7 +363,8 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
             if not ev.ok:
                 continue
             n_eff = effective_samples(ev.residual)
-            dbic = delta_bic(current.cost, ev.cost, e.size, n_eff)
+            shared = _replaces(state, e)
+            dbic = delta_bic(current.cost, ev.cost, e.size - (shared.size if shared else 0), n_eff)
             drop = 1.0 - ev.cost / current.cost if current.cost > 0 else 0.0
             log['fits'].append({'effect': e.key, 'rss_drop': round(drop, 4), 'dbic': round(dbic, 1),
                                 'n_eff': round(n_eff, 1), 'iterations': int(result.iterations),
@@ -343,13 +377,24 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
         e, fitted, result, dbic, n_eff, drop, s = best
         how = (f'the score test ranked it {screen.index(s) + 1} of {len(screen)} candidates (predicted '
                f'{100 * s["predicted_rss_drop"]:.1f} % drop)')
-        added.append(_entry(e, fitted, result, current, dbic, n_eff, drop, how, problem.free))
-        log['decision'] = f'added {e.key}'
+        shared = _replaces(state, e)
         values = dict(zip(fitted.free, (float(v) for v in result.params)))
-        state = _state_with(problem, state.effects + [e], values)
+        if shared is None:
+            added.append(_entry(e, fitted, result, current, dbic, n_eff, drop, how, problem.free))
+            log['decision'] = f'added {e.key}'
+            state = _state_with(problem, state.effects + [e], values)
+        else:                   # per-joint values replace the shared one, in place (the statistics decided)
+            at = [x.key for x in state.effects].index(shared.key)
+            was = describe(shared, [state.params[state.free.index(c)] for c in shared.coefficients])
+            how = f'it replaces the shared {shared.key} ({was}); {how}'
+            entry = _entry(e, fitted, result, current, dbic, n_eff, drop, how, problem.free)
+            entry['error_before'] = added[at]['error_before']       # the model without this friction at all
+            added[at] = entry
+            log['decision'] = f'replaced {shared.key} by {e.key}'
+            state = _state_with(problem, [e if x.key == shared.key else x for x in state.effects], values)
         current, final_free = result.evaluation, list(fitted.free)
         # backward step
-        for old in list(state.effects[:-1]):
+        for old in [x for x in state.effects if x.key != e.key]:
             reduced = _state_with(problem, [x for x in state.effects if x.key != old.key], values)
             r_problem, r_result = _fit_state(reduced, problem)
             r_ev = r_result.evaluation
@@ -371,7 +416,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
     if added:
         # every effect's parameters as identified jointly in the final model (the values when it was added are kept)
         final = dict(zip(final_free, (float(v) for v in current.params)))
-        std, _ = parameter_covariance(current.jacobian, current.residual)
+        std, _, _ = hac_parameter_covariance(current.jacobian, current.residual)
         std = dict(zip(final_free, (float(v) for v in std)))
         for entry, e in zip(added, state.effects):
             entry['parameters_when_added'] = entry['parameters']
@@ -381,7 +426,88 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
     return {'effects_added': added, 'parameters': dict(zip(state.free, (float(v) for v in state.params))),
             'error_after': problem.cost.errors(current.traj.q), 'rounds': rounds, 'cost': problem.cost.kind,
             'declared_refit': dict(zip(problem.free, (float(v) for v in params))),
-            'wall_time_s': time.monotonic() - t0}
+            'wall_time_s': time.monotonic() - t0, '_effects': list(state.effects)}
+
+
+NOISE_WINDOW_S = 0.1          # Savitzky-Golay window of the noise-level estimate (the motion is far slower)
+STRUCTURE_RATIO = 3.0         # final end-effector residual above this many times the data's noise: wrong model
+
+
+def measured_noise_level(base: IdentificationProblem) -> dict:
+    """The noise the measurement itself shows, with no model: the measured arm angles and the end-effector path
+    computed from them, minus their Savitzky-Golay smoothing (cubic, NOISE_WINDOW_S), corrected for the share of the
+    noise the smoother keeps (:func:`~.arm_torque.torque_noise_rms`). A model that explains the data leaves about
+    this much; ee_rms_m is comparable with the errors' ee_rms_m (RMS of the 3-D distance)."""
+    from .arm_torque import torque_noise_rms
+    w = max(5, int(round(NOISE_WINDOW_S / base.data.dt)) | 1)
+    ee = torque_noise_rms(base.cost.y_meas, w) * math.sqrt(base.cost.y_meas.shape[1])
+    joint = torque_noise_rms(base.cost.theta_meas, w)
+    return {'ee_rms_m': float(ee), 'joint_rms_rad': float(joint), 'window_samples': int(w)}
+
+
+def structure_warning(error_after: dict, noise: dict, effects_added: list) -> str | None:
+    """Plain words when the final model still leaves far more than the noise (STRUCTURE_RATIO) after the closed
+    loop: no candidate effect explains the rest, so the model's structure is wrong."""
+    ratio = error_after['ee_rms_m'] / max(noise['ee_rms_m'], 1e-12)
+    if ratio <= STRUCTURE_RATIO:
+        return None
+    named = (f'after adding {", ".join(e["key"] for e in effects_added)}' if effects_added
+             else 'and no candidate effect explains it')
+    return (f'the model structure looks wrong: the end-effector residual is {1e3 * error_after["ee_rms_m"]:.3g} mm, '
+            f'{ratio:.0f} times the noise the data itself shows ({1e3 * noise["ee_rms_m"]:.3g} mm), {named}. Check '
+            f'the experiment against the hardware (number of loop links, radius, mass, grasp and clamp poses, the '
+            f'arm description) or look for an effect outside the closed loop\'s library; the identified parameters '
+            f'of this model should not be trusted')
+
+
+def validation_split(base: IdentificationProblem, fraction: float) -> int:
+    """Samples of the fitted part when the last ``fraction`` of the window is held out (never fitted)."""
+    T = len(base.data.t_s)
+    n_fit = T - int(round(fraction * T))
+    if not 0.0 < fraction < 1.0 or n_fit < 20 or T - n_fit < 10:
+        raise ValueError(f'validation fraction {fraction:g} leaves no usable fitted part or validation part of the '
+                         f'{T} samples')
+    return n_fit
+
+
+def held_out_errors(state: State, base: IdentificationProblem, n_fit: int, max_iterations: int = 15) -> dict:
+    """The model of ``state`` refitted on the first ``n_fit`` samples only (LM from the state's parameters), then
+    simulated over the whole window: its errors on the held-out rest ('ee_rms_m', 'joint_rms_rad'), with the fitted
+    part's beside them ('fitted_part'). When that simulation fails (the refitted model leaves its valid region in
+    the held-out part), the errors are None and 'failure' says why."""
+    fit_problem = state.problem(base.truncated(n_fit))
+    result = levenberg_marquardt(fit_problem, fit_problem.start, max_iterations=max_iterations, rescue_above=None)
+    full = state.problem(base)
+    full.substeps = max(full.substeps, fit_problem.substeps)
+    ev = full.evaluate(result.params if result.evaluation.ok else fit_problem.start)
+    if not ev.ok:
+        return {'ee_rms_m': None, 'joint_rms_rad': None, 'failure': str(ev.failure)}
+    out = base.cost.errors(ev.traj.q, slice(n_fit, None))
+    out['fitted_part'] = base.cost.errors(ev.traj.q, slice(0, n_fit))
+    return out
+
+
+def add_validation(found: dict, base: IdentificationProblem, fraction: float, effects: list[Effect],
+                   declared_values: dict, progress=None) -> dict:
+    """Validation figures of the declared model and of each model along ``effects_added`` (each refitted on the
+    fitted part, measured on the held-out last ``fraction`` of the window): put into every item's error_before /
+    error_after under 'validation'; returns {'declared': ..., 'final': ..., 'fraction', 'from_s'}."""
+    n_fit = validation_split(base, fraction)
+    values = dict(declared_values)
+    values.update(found['parameters'])
+    figures = []
+    for i in range(len(effects) + 1):
+        if progress:
+            progress({'stage': 'validate', 'fraction': i / (len(effects) + 1)})
+        state = _state_with(base, effects[:i], values if i else declared_values)
+        figures.append(held_out_errors(state, base, n_fit))
+    for i, entry in enumerate(found['effects_added']):
+        entry['error_before']['validation'] = figures[i]
+        entry['error_after']['validation'] = figures[i + 1]
+        before, after = figures[i]['ee_rms_m'], figures[i + 1]['ee_rms_m']
+        entry['lowers_validation_error'] = None if before is None or after is None else bool(after < before)
+    return {'declared': figures[0], 'final': figures[-1], 'fraction': float(fraction),
+            'from_s': float(base.data.t_s[n_fit] - base.data.t_s[0]), 'fitted_samples': int(n_fit)}
 
 
 def _replay(problem, effects, declared_eval, values) -> list:

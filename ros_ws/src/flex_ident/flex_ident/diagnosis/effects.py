@@ -7,10 +7,17 @@ Each candidate is what a robotics engineer checks first when a model does not fi
 |-----------------|-----------------------------------------|----------------------------------------------------------|
 | loop_damping    | loop joint viscous damping              | c_loop [N m s/rad] (ViscousDamping on every loop angle)  |
 | arm_viscous     | arm joint viscous friction (extra)      | c_arm [N m s/rad] (ViscousDamping on every arm joint)    |
+| arm_viscous_per_joint | the same, one value per joint     | c_arm_<joint> [N m s/rad]                                |
 | arm_coulomb     | arm joint Coulomb friction              | f_arm [N m] (smoothed CoulombFriction on every arm joint)|
+| arm_coulomb_per_joint | the same, one value per joint     | f_arm_<joint> [N m]                                      |
 | torque_bias     | torque sensor bias                      | b_<joint> [N m] per arm joint (ConstantForce = -bias)    |
 | torque_gain     | torque sensor gain                      | torque_input_scale = 1 / gain (the inputs' gain)         |
 | time_offset     | measurement delay (torque vs. encoders) | delay_s [s]: efforts used as tau_meas(t + delay_s)       |
+| loop_rest_angle | rest-angle offset of the object         | rest_<theta|phi>_<left|right> [rad]: the loop springs'   |
+|                 |                                         | rest angle, per branch and bending direction (Spring)    |
+
+A per-joint friction *replaces* its shared variant when both are considered: the closed loop tests the per-joint
+values against the shared one (one value against seven, BIC), so the statistics decide between them.
 
 Every coefficient has a *null value* (0, or 1 for the gain) at which the model is the declared one, so the score at
 the null is the first-order evidence for the effect. ``time_offset`` is no model term: it shifts the measured
@@ -25,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanics.model import Coefficient, ConstantForce, CoulombFriction, ViscousDamping
+from ..mechanics.model import Coefficient, ConstantForce, CoulombFriction, Spring, ViscousDamping
 
 #: smoothing velocity of the Coulomb friction model [rad/s]
 COULOMB_VELOCITY_SCALE = 0.02
@@ -41,6 +48,7 @@ class Effect:
     lower: tuple
     upper: tuple
     one_sided: bool             # a physical effect with a sign (damping, friction): the score only counts >= 0
+    replaces: str = ''          # key of the shared variant this per-joint effect refines (it starts at its value)
 
     @property
     def size(self) -> int:
@@ -61,16 +69,41 @@ def candidate_effects(model) -> list[Effect]:
     out = []
     if len(loop_coords(model)):
         out.append(Effect('loop_damping', 'loop joint viscous damping', ('c_loop',), (0.0,), (0.0,), (100.0,), True))
+    joints = arm_joint_names(model)
+    n = len(joints)
     out.append(Effect('arm_viscous', 'arm joint viscous friction (in addition to the URDF damping)', ('c_arm',),
                       (0.0,), (0.0,), (100.0,), True))
+    out.append(Effect('arm_viscous_per_joint',
+                      'arm joint viscous friction, per joint (in addition to the URDF damping)',
+                      tuple(f'c_arm_{j}' for j in joints), (0.0,) * n, (0.0,) * n, (100.0,) * n, True, 'arm_viscous'))
     out.append(Effect('arm_coulomb', 'arm joint Coulomb friction', ('f_arm',), (0.0,), (0.0,), (100.0,), True))
-    joints = arm_joint_names(model)
+    out.append(Effect('arm_coulomb_per_joint', 'arm joint Coulomb friction, per joint',
+                      tuple(f'f_arm_{j}' for j in joints), (0.0,) * n, (0.0,) * n, (100.0,) * n, True, 'arm_coulomb'))
     out.append(Effect('torque_bias', 'torque sensor bias (per joint)', tuple(f'b_{j}' for j in joints),
                       (0.0,) * len(joints), (-np.inf,) * len(joints), (np.inf,) * len(joints), False))
     out.append(Effect('torque_gain', 'torque sensor gain', ('torque_input_scale',), (1.0,), (0.2,), (5.0,), False))
     out.append(Effect('time_offset', 'measurement delay between torque sensors and joint encoders',
                       (DELAY_PARAMETER,), (0.0,), (-0.1,), (0.1,), False))
+    groups = rest_angle_groups(model)
+    if groups:
+        out.append(Effect('loop_rest_angle', 'rest-angle offset of the object (its unloaded shape is not the declared '
+                          'one)', tuple(groups), (0.0,) * len(groups), (-0.5,) * len(groups), (0.5,) * len(groups),
+                          False))
     return out
+
+
+def rest_angle_groups(model) -> dict:
+    """Loop springs grouped by branch and bending direction: {'rest_theta_left': [term index, ...], ...}."""
+    names = model.coef_names
+    kinds = {names.index(k): k[2:] for k in ('k_theta', 'k_phi') if k in names}
+    groups = {}
+    for t_index, term in enumerate(model.terms):
+        if isinstance(term, Spring) and term.coef in kinds:
+            name = model.coord_names[term.coord]
+            side = 'left' if '_left_' in name else 'right' if '_right_' in name else ''
+            key = f'rest_{kinds[term.coef]}' + (f'_{side}' if side else '')
+            groups.setdefault(key, []).append(t_index)
+    return groups
 
 
 def with_effect(model, effect: Effect):
@@ -89,6 +122,23 @@ def with_effect(model, effect: Effect):
     elif effect.key == 'arm_coulomb':
         coefs = [Coefficient('f_arm', 0.0, 'Coulomb friction torque of every arm joint', 'N m')]
         terms = [CoulombFriction(i, n0, COULOMB_VELOCITY_SCALE) for i in arm]
+    elif effect.key == 'arm_viscous_per_joint':
+        coefs = [Coefficient(c, 0.0, f'viscous friction of {c[6:]} beyond the URDF damping', 'N m s/rad')
+                 for c in effect.coefficients]
+        terms = [ViscousDamping(i, n0 + k) for k, i in enumerate(arm)]
+    elif effect.key == 'arm_coulomb_per_joint':
+        coefs = [Coefficient(c, 0.0, f'Coulomb friction torque of {c[6:]}', 'N m') for c in effect.coefficients]
+        terms = [CoulombFriction(i, n0 + k, COULOMB_VELOCITY_SCALE) for k, i in enumerate(arm)]
+    elif effect.key == 'loop_rest_angle':
+        coefs = [Coefficient(c, 0.0, f'rest-angle offset of the loop springs ({c[5:].replace("_", ", ")})', 'rad')
+                 for c in effect.coefficients]
+        out = model.extended(coefs, [])
+        out.terms = list(out.terms)
+        for name, indices in rest_angle_groups(model).items():
+            for t_index in indices:
+                s = out.terms[t_index]
+                out.terms[t_index] = Spring(s.coord, s.coef, s.rest, n0 + effect.coefficients.index(name))
+        return out
     elif effect.key == 'torque_bias':
         names = effect.coefficients
         coefs = [Coefficient(c, 0.0, f'torque sensor bias of {c[2:]} (reads this much too high)', 'N m')

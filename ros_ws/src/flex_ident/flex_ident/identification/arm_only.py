@@ -2,7 +2,6 @@
 (``flex_ident.diagnosis.arm_torque``), its report (CONTRACTS.md section 3 fields with torque errors) and plots."""
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -32,7 +31,6 @@ def identify_arm_only(bag_path, experiment, out_dir, validation_fraction=0.3, pl
     if problems:
         warnings.append('the URDF\'s inertial data is not physically valid for link(s): ' + '; '.join(problems)
                         + ' (diagnosed anyway; the inertial candidate can absorb it)')
-        print('flex-ident: warning: ' + warnings[-1], file=sys.stderr)
     sig = choose_window(rec.t_s, rec.position, rec.effort, joints, arm, validation_fraction)
     found = diagnose_arm(sig, arm, validation_fraction=validation_fraction, progress=progress)
     pred, residual, parts = found.pop('_prediction'), found.pop('_residual'), found.pop('_contributions')

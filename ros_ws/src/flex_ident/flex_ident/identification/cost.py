@@ -66,9 +66,10 @@ class TrackingCost:
         r, _ = self.residual_and_output_jacobian(Q)
         return float(np.sum(r * r))
 
-    def errors(self, Q) -> dict:
-        """RMS errors of a simulated configuration sequence against the measurement."""
+    def errors(self, Q, part: slice = slice(None)) -> dict:
+        """RMS errors of a simulated configuration sequence against the measurement (on the samples ``part``)."""
+        Q = Q[part]
         Y, _ = end_effector_positions(self.model, Q)
-        ee = np.sqrt(np.mean(np.sum((Y - self.y_meas) ** 2, axis=1)))
-        joint = np.sqrt(np.mean((Q[:, self.model.measured_coords] - self.theta_meas) ** 2))
+        ee = np.sqrt(np.mean(np.sum((Y - self.y_meas[part]) ** 2, axis=1)))
+        joint = np.sqrt(np.mean((Q[:, self.model.measured_coords] - self.theta_meas[part]) ** 2))
         return {'ee_rms_m': float(ee), 'joint_rms_rad': float(joint)}

@@ -50,7 +50,7 @@ class IdentificationSettings:
     plots: bool = True
     continuation: bool = True                   # warm start on the first 2.5 s, 5 s, 10 s, ... of the recording
     first_window_s: float = 2.5
-    diagnose: bool = False                      # closed loop: find, add and jointly identify missing effects
+    diagnose: bool = True                       # closed loop: find, add and jointly identify missing effects
     validation_fraction: float = 0.3            # arm-only experiments: last part of the window, never fitted
 
 
@@ -120,6 +120,12 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
         report = identify_arm_only(bag_path, spec, out, settings.validation_fraction, settings.plots, progress)
         return IdentificationRun(report=report, model=None, problem=None, result=None, initial=None)
     experiment, model, problem, notes = prepare(bag_path, experiment_path, settings, progress)
+    if settings.diagnose:
+        from ..diagnosis.closed_loop import validation_split
+        try:
+            validation_split(problem, settings.validation_fraction)
+        except ValueError as exc:
+            raise IdentificationInputError(f'{exc} (--validation-fraction)') from None
     specs = experiment.identify.parameters
     p0 = np.array([p.initial for p in specs], float)
     max_iterations = settings.max_iterations or (experiment.identify.max_iterations if method == 'lm' else None)
@@ -164,7 +170,7 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     report = build_report(problem, result, initial, experiment, bag_path, method, notes,
                           wall_time_s=time.monotonic() - t_start)
     if settings.diagnose:
-        add_diagnosis(report, problem, result, progress)
+        add_diagnosis(report, problem, result, progress, initial, settings.validation_fraction)
     plots = []
     if settings.plots:
         from .plots import write_plots
@@ -177,24 +183,47 @@ def identify(bag_path, experiment_path, out_dir, settings: IdentificationSetting
     return IdentificationRun(report=report, model=model, problem=problem, result=result, initial=initial)
 
 
-def add_diagnosis(report: dict, problem, result, progress: Progress | None = None):
+def add_diagnosis(report: dict, problem, result, progress: Progress | None = None, initial=None,
+                  validation_fraction: float | None = 0.3):
     """The closed loop (``flex_ident.diagnosis``): effects_added, and the declared parameters and overall error
-    after the last added effect (the declared-only fit is kept under 'declared_only')."""
-    from ..diagnosis.closed_loop import diagnose
+    after the last added effect (the declared-only fit is kept under 'declared_only').
+
+    validation_fraction: the last part of the window held out; every model along the way is refitted on the rest
+    and its error on the held-out part goes under 'validation' in error_before / error_after (the overall ones and
+    each effect's; error_before's is the initial guess simulated over the whole window, nothing fitted)."""
+    from ..diagnosis.closed_loop import add_validation, diagnose, measured_noise_level, structure_warning
 
     _notify(progress, stage='diagnose', fraction=0.0)
+    t0 = time.monotonic()
     found = diagnose(problem, result.params, progress)
     report['effects_added'] = found['effects_added']
     report['diagnosis'] = {'rounds': found['rounds'], 'wall_time_s': found['wall_time_s'],
                            'all_parameters': found['parameters'], 'cost': found['cost'],
                            'declared_refit_on_diagnosis_cost': found['declared_refit']}
+    declared_error = report['error_after']
     if found['effects_added']:
         report['declared_only'] = {'parameters': report['parameters'], 'parameter_std': report['parameter_std'],
-                                   'error_after': report['error_after']}
+                                   'error_after': declared_error}
         last = found['effects_added'][-1]
         report['parameters'] = dict(last['declared_parameters_after'])
         report['parameter_std'] = {n: last['declared_parameter_std'].get(n) for n in problem.free}
         report['error_after'] = found['error_after']
+    if validation_fraction is not None:
+        validation = add_validation(found, problem, validation_fraction, found['_effects'],
+                                    dict(zip(problem.free, (float(v) for v in result.params))), progress)
+        declared_error['validation'] = validation['declared']
+        report['error_after']['validation'] = validation['final']
+        if initial is not None and initial.ok:
+            n_fit = validation['fitted_samples']
+            report['error_before']['validation'] = problem.cost.errors(initial.traj.q, slice(n_fit, None))
+        report['diagnosis']['validation'] = {k: validation[k] for k in ('fraction', 'from_s', 'fitted_samples')}
+    noise = measured_noise_level(problem)
+    report['diagnosis']['measured_noise'] = noise
+    warning = structure_warning(report['error_after'], noise, found['effects_added'])
+    report['diagnosis']['model_structure_ok'] = warning is None
+    if warning:
+        report.setdefault('warnings', []).append(warning)
+    report['diagnosis']['wall_time_s'] = time.monotonic() - t0
 
 
 def warm_start_windows(data, first_window_s=2.5) -> list[float]:
@@ -231,11 +260,11 @@ def warm_start(problem, p0, method, windows, progress: Progress | None = None):
 
 
 def run_identification(bag_path: str, experiment_path: str, out_dir: str, method: str = 'lm',
-                       progress: Callable[[dict], None] | None = None, diagnose: bool = False) -> dict:
+                       progress: Callable[[dict], None] | None = None, diagnose: bool = True) -> dict:
     """Identify the experiment's parameters from the bag; write ``out_dir/report.json`` (+ plots); return the report.
 
     method: 'lm' (Levenberg-Marquardt, default), 'lbfgsb' (L-BFGS-B with the adjoint gradient) or 'steepest' (the
-    paper's projected steepest descent with Armijo steps). diagnose: also run the closed loop (effects_added).
+    paper's projected steepest descent with Armijo steps). diagnose: run the closed loop (effects_added; default on).
     Raises ValueError subclasses on bad input.
     """
     settings = IdentificationSettings(method=method, diagnose=diagnose)

@@ -32,6 +32,51 @@ def parameter_covariance(jacobian, residual):
     return std, corr
 
 
+def hac_parameter_covariance(jacobian, residual, lag: int | None = None):
+    """(std (p,), correlation (p, p), lag) with a Newey-West (HAC) sandwich for residuals correlated in time.
+
+    residual: (T, m), one row per sample; jacobian: (T * m, p), rows in the same (row-major) order. The scores
+    g_t = J_t^T r_t of each sample are autocorrelated (a simulated trajectory turns white measurement noise into
+    smooth errors), so sigma^2 (J^T J)^-1 is only a lower bound. The sandwich is
+    (J^T J)^-1 [sum_{|l| <= L} (1 - |l| / (L + 1)) Gamma_l] (J^T J)^-1 with Gamma_l = sum_t g_t g_{t-l}^T (Bartlett
+    weights keep it positive semi-definite). The lag L defaults to Andrews' (1991) AR(1) plug-in bandwidth for the
+    Bartlett kernel, 1.1447 (alpha T)^(1/3), alpha = sum 4 rho^2 s^4 / ((1 - rho)^6 (1 + rho)^2) / sum s^4 / (1 - rho)^4
+    over the score components (rho their lag-one autocorrelation, s^2 their innovation variance), capped at T / 4."""
+    r = np.asarray(residual, float)
+    T = r.shape[0]
+    r = r.reshape(T, -1)
+    J = np.asarray(jacobian, float).reshape(T, r.shape[1], -1)
+    p = J.shape[2]
+    g = np.einsum('tmp,tm->tp', J, r)
+    g = g - g.mean(axis=0)
+    if lag is None:
+        num = den = 0.0
+        for k in range(p):
+            x = g[:, k]
+            ss = float(x[:-1] @ x[:-1])
+            rho = float(x[1:] @ x[:-1]) / ss if ss > 0 else 0.0
+            rho = min(max(rho, -0.97), 0.97)
+            s2 = float(np.mean((x[1:] - rho * x[:-1]) ** 2))
+            num += 4 * rho ** 2 * s2 ** 2 / ((1 - rho) ** 6 * (1 + rho) ** 2)
+            den += s2 ** 2 / (1 - rho) ** 4
+        alpha = num / den if den > 0 else 0.0
+        lag = int(min(max(math.ceil(1.1447 * (alpha * T) ** (1 / 3)), 1), T // 4))
+    S = g.T @ g
+    for l_ in range(1, lag + 1):
+        G = g[l_:].T @ g[:-l_]
+        S += (1 - l_ / (lag + 1)) * (G + G.T)
+    JTJ = np.einsum('tmp,tmq->pq', J, J)
+    try:
+        inv = np.linalg.inv(JTJ)
+    except np.linalg.LinAlgError:
+        return np.full(p, np.inf), np.full((p, p), np.nan), lag
+    cov = inv @ S @ inv * T / max(T - p, 1)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid='ignore', divide='ignore'):
+        corr = cov / np.outer(std, std)
+    return std, corr, lag
+
+
 def _finite(x):
     x = float(x)
     return x if math.isfinite(x) else None
@@ -41,7 +86,8 @@ def build_report(problem, result, initial, experiment, bag_path, method, notes, 
     model = problem.model
     final = result.evaluation
     names = problem.free
-    std, corr = parameter_covariance(final.jacobian, final.residual)
+    std, corr, lag = hac_parameter_covariance(final.jacobian, final.residual)
+    curvature_std, _ = parameter_covariance(final.jacobian, final.residual)
     coefs = {c.name: c for c in model.coefficients}
     specs = {p.name: p for p in experiment.identify.parameters}
     report = {
@@ -65,8 +111,9 @@ def build_report(problem, result, initial, experiment, bag_path, method, notes, 
         'parameter_info': {n: {'initial': specs[n].initial, 'min': _finite(specs[n].min), 'max': _finite(specs[n].max),
                                'unit': coefs[n].unit, 'description': coefs[n].description} for n in names},
         'parameter_correlation': [[_finite(v) for v in row] for row in corr],
-        'parameter_std_note': 'from the cost curvature at the optimum, sigma^2 (J^T J)^-1 with sigma^2 the residual '
-                              'variance; residuals are correlated in time, so these are lower bounds',
+        'parameter_std_note': (f'Newey-West (HAC) sandwich over the time-correlated residual (Bartlett, {lag} samples '
+                               'lag); parameter_std_curvature: sigma^2 (J^T J)^-1, a lower bound'),
+        'parameter_std_curvature': {n: _finite(s) for n, s in zip(names, curvature_std)},
         'model': {'coordinates': model.n, 'constraints': model.n_constraints,
                   'object': model.description.get('object', 'none'),
                   'loop_links': model.description.get('loop_links'),

@@ -27,10 +27,12 @@ REVOLUTE, PRISMATIC = 0, 1
 
 @dataclass(frozen=True)
 class Spring:
-    """Torsional/linear spring V = coef * (q - rest)^2 / 2 on one coordinate."""
+    """Torsional/linear spring V = coef * (q - rest - offset)^2 / 2 on one coordinate; ``offset`` is the coefficient
+    ``rest_coef`` (an identifiable rest-angle offset) or 0 when ``rest_coef`` is -1."""
     coord: int
     coef: int
     rest: float = 0.0
+    rest_coef: int = -1
 
 
 @dataclass(frozen=True)

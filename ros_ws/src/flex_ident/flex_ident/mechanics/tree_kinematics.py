@@ -28,7 +28,7 @@ KernelModel = namedtuple('KernelModel', [
     'parent', 'order', 'jtype', 'XR', 'Xp', 'axis', 'anc', 'ancl', 'nanc',
     'bmass', 'bcom', 'binertia', 'gravity',
     'weld_coord', 'weld_XR', 'weld_Xp', 'weld_RT', 'weld_pT',
-    'spring_coord', 'spring_coef', 'spring_rest',
+    'spring_coord', 'spring_coef', 'spring_rest', 'spring_rest_coef',
     'visc_coord', 'visc_coef',
     'coul_coord', 'coul_coef', 'coul_vs',
     'cforce_coord', 'cforce_coef',
@@ -107,7 +107,7 @@ def pack_model(model: MechanicalModel) -> KernelModel:
         weld_coord=ints([w.coord for w in model.welds]), weld_XR=weld_XR, weld_Xp=weld_Xp,
         weld_RT=weld_RT, weld_pT=weld_pT,
         spring_coord=ints([t.coord for t in springs]), spring_coef=ints([t.coef for t in springs]),
-        spring_rest=floats([t.rest for t in springs]),
+        spring_rest=floats([t.rest for t in springs]), spring_rest_coef=ints([t.rest_coef for t in springs]),
         visc_coord=ints([t.coord for t in visc]), visc_coef=ints([t.coef for t in visc]),
         coul_coord=ints([t.coord for t in coul]), coul_coef=ints([t.coef for t in coul]),
         coul_vs=floats([t.velocity_scale for t in coul]),
@@ -398,6 +398,10 @@ def lagrangian_derivatives(km, q, v, coef, second, Lq, Lv, Lqq, Lqv, Lvv, dLq_dc
         i = km.spring_coord[s]
         k = coef[km.spring_coef[s]]
         d = q[i] - km.spring_rest[s]
+        rc = km.spring_rest_coef[s]
+        if rc >= 0:
+            d -= coef[rc]
+            dLq_dc[i, rc] += k
         Lq[i] -= k * d
         dLq_dc[i, km.spring_coef[s]] -= d
         potential += 0.5 * k * d * d

@@ -12,7 +12,7 @@ Parameters
   experiment (string)   experiment YAML (CONTRACTS.md section 2)
   out (string)          output directory for report.json and plots (default: identification_<bag name>)
   method (string)       optimizer passed to the identification (default 'lm')
-  diagnose (bool)       also run the closed loop: find, add and identify effects the model lacks (default false)
+  diagnose (bool)       run the closed loop: find, add and identify effects the model lacks (default true)
   run_on_start (bool)   start a job with the parameters as soon as the node is up (default false)
   recorded_topic (string) identify every bag announced on this topic (std_msgs/String JSON {"bag": ...}, as
                         joint_state_logger publishes on /joint_state_logger/recorded when it closes a bag), with
@@ -62,7 +62,7 @@ RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=Rel
                       durability=DurabilityPolicy.VOLATILE)
 
 
-def run_identification(bag_path, experiment_path, out_dir, method='lm', progress=None, diagnose=False) -> dict:
+def run_identification(bag_path, experiment_path, out_dir, method='lm', progress=None, diagnose=True) -> dict:
     """The identification (imported when first used, so the node starts even if it is unavailable)."""
     from flex_ident.identification.identify import run_identification as identify
     return identify(bag_path, experiment_path, out_dir, method=method, progress=progress, diagnose=diagnose)
@@ -78,11 +78,11 @@ class IdentificationRequest:
     experiment: str
     out: str
     method: str
-    diagnose: bool = False
+    diagnose: bool = True
     request_id: str = ''
 
     @classmethod
-    def from_values(cls, bag, experiment, out, method, diagnose=False, request_id='') -> 'IdentificationRequest':
+    def from_values(cls, bag, experiment, out, method, diagnose=True, request_id='') -> 'IdentificationRequest':
         bag, experiment = str(bag or '').strip(), str(experiment or '').strip()
         if not bag:
             raise RequestError('no bag given (request key "bag" or parameter bag)')
@@ -102,8 +102,9 @@ class StiffnessIdentifier(Node):
         experiment = declare_parameter(self, 'experiment', '', 'experiment YAML')
         declare_parameter(self, 'out', '', 'output directory (default: identification_<bag name>)')
         declare_parameter(self, 'method', 'lm', 'optimizer: lm, lbfgsb or steepest')
-        declare_parameter(self, 'diagnose', False,
-                          'also find, add and identify effects the model lacks (the closed loop)')
+        declare_parameter(self, 'diagnose', True,
+                          'find, add and identify effects the model lacks (the closed loop; false: the '
+                          'declared parameters only)')
         run_on_start = declare_parameter(self, 'run_on_start', False,
                                          'start a job with the parameters once the node is up')
         self._lock = threading.Lock()

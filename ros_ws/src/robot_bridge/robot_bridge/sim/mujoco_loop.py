@@ -443,8 +443,10 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument('--noise-effort', type=float, default=0.0, metavar='NM')
     g = p.add_argument_group('undeclared effects')
     g.add_argument('--loop-damping', type=float, default=0.0, help='loop joint viscous damping [N m s/rad]')
-    g.add_argument('--arm-viscous', type=float, default=0.0, help='extra arm viscous friction [N m s/rad]')
-    g.add_argument('--arm-coulomb', type=float, default=0.0, help='arm Coulomb friction [N m]')
+    g.add_argument('--arm-viscous', type=float, nargs='+', default=[0.0],
+                   help='extra arm viscous friction [N m s/rad] (one value, or one per arm joint)')
+    g.add_argument('--arm-coulomb', type=float, nargs='+', default=[0.0],
+                   help='arm Coulomb friction [N m] (one value, or one per arm joint)')
     g.add_argument('--effort-bias', type=float, nargs='+', default=[0.0], help='torque-sensor bias [N m]')
     g.add_argument('--effort-gain', type=float, default=1.0, help='torque-sensor gain')
     g.add_argument('--position-delay', type=float, default=0.0, help='encoder delay [s]')
@@ -460,9 +462,12 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    bias = args.effort_bias[0] if len(args.effort_bias) == 1 else args.effort_bias
-    effects = Effects(loop_damping_nms=args.loop_damping, arm_viscous_nms=args.arm_viscous,
-                      arm_coulomb_nm=args.arm_coulomb, effort_bias_nm=bias, effort_gain=args.effort_gain,
+    def one_or_per_joint(values):
+        return values[0] if len(values) == 1 else values
+
+    effects = Effects(loop_damping_nms=args.loop_damping, arm_viscous_nms=one_or_per_joint(args.arm_viscous),
+                      arm_coulomb_nm=one_or_per_joint(args.arm_coulomb),
+                      effort_bias_nm=one_or_per_joint(args.effort_bias), effort_gain=args.effort_gain,
                       position_delay_s=args.position_delay, effort_delay_s=args.effort_delay)
     default = SumOfSinesMotion()
     motion = SumOfSinesMotion(amplitudes_rad=tuple(args.amplitude_scale * np.asarray(default.amplitudes_rad)))
