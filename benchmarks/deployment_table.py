@@ -29,7 +29,9 @@ from rod_deploy.planning.pattern_input import load_pattern
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory, trajectory_times
 
-REF = Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'
+#: the published patterns and trajectories, read in place (``ROD_DEPLOYMENT_REFERENCE`` overrides, e.g. from a worktree)
+REF = Path(os.environ.get('ROD_DEPLOYMENT_REFERENCE',
+                          Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'))
 RODS = {1: {'length': 0.875, 'radius': 0.0016, 'L_gb': 0.018},
         2: {'length': 0.885, 'radius': 0.0016, 'L_gb': 0.032},
         3: {'length': 0.89, 'radius': 0.002, 'L_gb': 0.034}}
