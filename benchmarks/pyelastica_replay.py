@@ -60,7 +60,7 @@ FLIP = np.diag([1.0, -1.0, -1.0])      # director rows (d1, d2, d3) = FLIP @ R_g
 @dataclass
 class ElasticaSettings:
     element_length_m: float = 0.01    # PyElastica element length
-    dt_s: float = 2.5e-4              # position-Verlet step (explicit: below the axial wave's crossing time)
+    dt_s: float = 3e-4                # position-Verlet step (explicit: below the axial wave's crossing time, 3.6e-4 s)
     rotary_inertia_scale: float = 100.0   # the elements' rotary inertia times this (see rotary_inertia_scaled)
     damping_per_s: float = 2.0        # uniform viscous damping, as in our simulator
     contact_k_n_m: float = 200.0      # penalty stiffness of the table per element [N/m]
@@ -298,12 +298,23 @@ def main():
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--tag', default='', help='suffix of the results files')
+    ap.add_argument('--merge', nargs='+', metavar='JSON',
+                    help='only write one table from the .json files of earlier runs (ours read again)')
     add_results_argument(ap)
     args = ap.parse_args()
     settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
                                 slip_velocity_tol_m_s=args.slip_tol)
     t_all = time.perf_counter()
     checks = []
+    if args.merge:
+        out = results_path(args, f'pyelastica_replay{args.tag}.md')
+        ours = read_our_table(out.parent / 'deployment_table.md')
+        rows = [r for f in args.merge for r in json.loads(Path(f).read_text())['rows']]
+        for r in rows:
+            r['ours_e_mean_cm'] = ours.get((r['rod'], r['friction'], r['pattern'], r['planner']), float('nan'))
+        _write(out, rows, [], settings, sum(r['wall_s'] for r in rows))
+        print(f'results: {out}')
+        return
     if args.validate:
         for rod_id in sorted({int(r) for r in args.rods.split(',')}):
             for name, got, want in validate(rod_description_from_dict(RODS[rod_id])):
