@@ -298,6 +298,8 @@ def main():
     ap.add_argument('--element', type=float, default=ElasticaSettings.element_length_m)
     ap.add_argument('--contact-k', type=float, default=ElasticaSettings.contact_k_n_m)
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
+    ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
+                    help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--tag', default='', help='suffix of the results files')
     ap.add_argument('--merge', nargs='+', metavar='JSON',
@@ -309,7 +311,7 @@ def main():
     add_results_argument(ap)
     args = ap.parse_args()
     settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
-                                slip_velocity_tol_m_s=args.slip_tol)
+                                slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale)
     t_all = time.perf_counter()
     checks = []
     if args.merge:
