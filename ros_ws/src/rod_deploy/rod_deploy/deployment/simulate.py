@@ -135,7 +135,6 @@ def replay_schedule(t, position, quaternion, rod: RodDescription, start_xy=None,
     t = np.asarray(t, float)
     position = np.asarray(position, float)
     quaternion = np.asarray(quaternion, float)
-    L, h = rod.length_m, rod.radius_m
     # -- where the rod starts: hanging from the first pose, or below the hanging pose above start_xy
     if start_xy is not None:
         start = np.asarray(start_xy, float)
