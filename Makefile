@@ -12,7 +12,7 @@ export ROS_DOMAIN_ID ?= $(shell echo $$(( RANDOM % 100 + 1 )))
 export ROS_LOG_DIR ?= $(shell mktemp -d /tmp/ros_log.XXXXXX)
 export MPLBACKEND := Agg
 
-.PHONY: setup test demo colcon clean
+.PHONY: setup test demo colcon clean bench-env
 
 setup: $(STAMP)
 
@@ -31,6 +31,18 @@ demo: setup
 # colcon build of the three packages (executables in ros_ws/install/<pkg>/lib/<pkg>/, ament index registered)
 colcon: setup
 	cd ros_ws && ../$(VENV)/bin/colcon build --symlink-install
+
+# benchmark-only environment for the independent simulator (PyElastica, benchmarks/pyelastica_replay.py);
+# rod_deploy is importable from the work tree through PYTHONPATH (see the script's docstring), not installed here.
+BENCH_VENV := .venv-bench
+BENCH_STAMP := $(BENCH_VENV)/.installed
+
+bench-env: $(BENCH_STAMP)
+
+$(BENCH_STAMP):
+	test -x $(BENCH_VENV)/bin/python || python3 -m venv $(BENCH_VENV)
+	$(BENCH_VENV)/bin/python -m pip install --disable-pip-version-check -q pyelastica==1.0.0 numpy scipy pyyaml matplotlib
+	touch $(BENCH_STAMP)
 
 clean:
 	rm -rf ros_ws/build ros_ws/install ros_ws/log .pytest_cache

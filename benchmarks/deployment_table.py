@@ -29,7 +29,9 @@ from rod_deploy.planning.pattern_input import load_pattern
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory, trajectory_times
 
-REF = Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'
+#: the published patterns and trajectories, read in place (``ROD_DEPLOYMENT_REFERENCE`` overrides, e.g. from a worktree)
+REF = Path(os.environ.get('ROD_DEPLOYMENT_REFERENCE',
+                          Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'))
 RODS = {1: {'length': 0.875, 'radius': 0.0016, 'L_gb': 0.018},
         2: {'length': 0.885, 'radius': 0.0016, 'L_gb': 0.032},
         3: {'length': 0.89, 'radius': 0.002, 'L_gb': 0.034}}
@@ -118,7 +120,7 @@ def main():
                           f'sigma {row[5]:.3f} coverage {row[6]:.2f} ({row[7]:.0f} s) {row[8]}', flush=True)
     lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
-             'Our DER simulator (edge 5 mm, dt 0.05 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
+             'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
              'friction); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
              'pattern length. Self-contact ignored.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',

@@ -42,7 +42,8 @@ from rod_deploy.planning.optimal_grasp import grasp_sequence
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import GRIPPER_IN_GRASP_FRAME, PlannerSettings, local_frames, plan_trajectory
 
-REF = Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'
+REF = Path(os.environ.get('ROD_DEPLOYMENT_REFERENCE',
+                          Path(__file__).resolve().parents[2] / 'shared' / 'reference' / 'rod_deployment'))
 PATTERNS = ('line', 'circle', 'sine', 'letterU', 'letterC', 'letterL', 'letterA')
 ROD = {'length': 0.89, 'radius': 0.002, 'L_gb': 0.034}
 #: the published planner's smoothing spline: s = 0.001 m^2 (sum of squared residuals), i.e. sqrt(s / n) RMS

@@ -22,6 +22,13 @@ def test_loop_height_and_material():
     assert rod.gravito_bending_length_m == pytest.approx((1e6 * 0.002 ** 2 / (8 * 1180 * 9.81)) ** (1 / 3))
 
 
+def test_hanging_height_includes_the_stretch_under_its_own_weight():
+    """A rod hanging at rest with its free end just touching the table: the held node at h + L + rho g L^2 / (2 E)
+    (the tension rho A g s stretches each element by rho g s / E)."""
+    rod = rod_description_from_dict({'length': 0.8, 'radius': 0.002, 'youngs_modulus': 1.0e6, 'density': 1180})
+    assert rod.hanging_height_m == pytest.approx(0.002 + 0.8 + 1180 * 9.81 * 0.8 ** 2 / (2 * 1.0e6), rel=1e-12)
+
+
 @pytest.mark.parametrize('d, words', [
     ({'radius': 0.002, 'L_gb': 0.03}, 'missing "length"'),
     ({'length': 1, 'radius': 0.002}, 'needs one of'),

@@ -58,7 +58,7 @@ def test_straight_line_reaches_the_heavy_elastica_limit(method, tol_bar):
     np.testing.assert_allclose(plan.inputs[:, 2], 0.0, atol=1e-6)
     # the gripper: ahead of the contact point along the tangent by x_bar L_gb, in the vertical plane of the line,
     # lower than the suspended length by the elastica's drop (plus the stretch under its own weight, ~ls^2/(4 ks))
-    rel = plan.position[k:] - np.column_stack([pat.xy, np.zeros(len(pat.s))])
+    rel = plan.position[k:] - np.column_stack([pat.xy, np.full(len(pat.s), THIN_ROD.radius_m)])   # centreline z = h
     along = rel[:, :2] @ t
     across = rel[:, :2] @ np.array([-t[1], t[0]])
     np.testing.assert_allclose(along / LGB, X_BAR_INF, atol=tol_bar)
@@ -92,7 +92,7 @@ def test_circle_constant_signed_curvature_and_gripper_on_the_inside(ccw):
     y_in = qb[:, 1] * (1 if ccw else -1)                                   # towards the centre
     expected = np.hypot(radius - y_in * LGB, qb[:, 0] * LGB)
     np.testing.assert_allclose(np.linalg.norm(plan.position[k:, :2] - centre, axis=1), expected, atol=1e-6)
-    np.testing.assert_allclose(plan.position[k:, 2], qb[:, 2] * LGB, atol=1e-12)
+    np.testing.assert_allclose(plan.position[k:, 2], ROD.radius_m + qb[:, 2] * LGB, atol=1e-12)
 
 
 def test_mirrored_pattern_gives_the_mirrored_trajectory():
@@ -153,7 +153,10 @@ def test_hanging_pose_start_and_straight_lead_in():
     plan = plan_trajectory(arc(0.15, 1.5), ROD, PlannerSettings(method='nn', lead_in_poses=10))
     k = plan.first_grasp_index
     assert k == 10
-    np.testing.assert_allclose(plan.position[0], [*plan.pattern.xy[0], 0.89 + 0.002], atol=1e-12)
+    # at rest with the free end just touching the table: L + h + the stretch under its own weight, L^2 / (4 L_gb ks_bar)
+    stretch = 0.89 ** 2 / (4 * LGB * 4 * LGB ** 2 / 0.002 ** 2)
+    assert 0.0049 < stretch < 0.0051                                      # rho g L^2 / (2 E) for rod #3: 5.0 mm
+    np.testing.assert_allclose(plan.position[0], [*plan.pattern.xy[0], 0.89 + 0.002 + stretch], atol=1e-12)
     R = gripper_axes(plan)
     np.testing.assert_allclose(R[0][:, 2], [0, 0, -1], atol=1e-12)
     # the hanging gripper is turned like the first grasp about the vertical (no twist jump in the lead-in)

@@ -42,7 +42,7 @@ def test_node_inputs_follow_alg4():
 def test_hanging_start_gripper_frame_and_continuity():
     plan = plan_trajectory(circle(0.15, 1.5), ROD, PlannerSettings(method='nn'))
     R = Rotation.from_quat(plan.quaternion).as_matrix()
-    assert plan.position[0, 2] == pytest.approx(0.89 + 0.002)                           # hanging: L + radius
+    assert plan.position[0, 2] == pytest.approx(ROD.hanging_height_m)            # hanging: L + radius + stretch
     np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-9)
     np.testing.assert_allclose(R[0][:, 2], [0, 0, -1], atol=1e-9)                      # +z_gripper down
     # the rod leaves the gripper downwards and slightly backwards along the pattern at every grasp
@@ -62,7 +62,7 @@ def test_intuitive_baseline_is_straight_above_the_contact_point():
     plan = plan_trajectory(circle(0.15, 1.5), ROD, PlannerSettings(method='intuitive'))
     k = plan.first_grasp_index
     np.testing.assert_allclose(plan.position[k:, :2], plan.pattern.xy, atol=1e-12)
-    np.testing.assert_allclose(plan.position[k:, 2], 0.89 - plan.pattern.s)
+    np.testing.assert_allclose(plan.position[k:, 2], 0.002 + 0.89 - plan.pattern.s)   # centreline at z = h
     # it descends by the length laid: a 45-degree path
     d = np.diff(plan.position[k:], axis=0)
     np.testing.assert_allclose(-d[:, 2], np.linalg.norm(d[:, :2], axis=1), rtol=0.02)

@@ -73,7 +73,7 @@ class DeploymentResult:
 
 def is_hanging_pose(position, quaternion, rod: RodDescription, tol_m=0.01, tol_rad=0.05):
     z_g = Rotation.from_quat(quaternion).as_matrix()[:, 2]
-    return (abs(position[2] - (rod.length_m + rod.radius_m)) < tol_m and
+    return (abs(position[2] - rod.hanging_height_m) < tol_m and
             math.acos(min(1.0, max(-1.0, -z_g[2]))) < tol_rad)
 
 
@@ -112,27 +112,41 @@ def material_parameters(rod: RodDescription, friction: float, damping_per_s: flo
                          natural_curvature=(0.0, NATURAL_CURVATURE_SIGN * rod.natural_curvature_per_m))
 
 
-def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,
-                        progress=None, n_lead_in: int | None = None) -> DeploymentResult:
-    """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion).
+@dataclass
+class ReplaySchedule:
+    """The trajectory as a simulator replays it: from the hanging pose, at the speed cap."""
+    t: np.ndarray            # (n,) replay times [s], t[0] = 0
+    position: np.ndarray     # (n, 3) held node [m]
+    quaternion: np.ndarray   # (n, 4) gripper orientation, scalar-last, one hemisphere
+    start_xy: np.ndarray     # the free end's start point on the table [m]
+    lead_in_rows: int        # rows on the straight line leaving the hanging pose
+    t_release: float         # replay time at which the free end is released [s]
+
+    def gripper(self, time_s):
+        """(position (3,), rotation matrix (3, 3)) of the gripper at replay time ``time_s`` (clamped)."""
+        tt = min(max(time_s, self.t[0]), self.t[-1])
+        p = np.array([np.interp(tt, self.t, self.position[:, k]) for k in range(3)])
+        return p, self._slerp([tt]).as_matrix()[0]
+
+    def __post_init__(self):
+        self._slerp = Slerp(self.t, Rotation.from_quat(self.quaternion))
+
+
+def replay_schedule(t, position, quaternion, rod: RodDescription, start_xy=None,
+                    max_gripper_speed_m_s=0.01, n_lead_in: int | None = None) -> ReplaySchedule:
+    """Where the free end starts, the hanging pose prepended when the trajectory starts elsewhere (the straight
+    lead-in of CONTRACTS.md section 4), the lead-in rows and the replay times at the gripper speed cap.
 
     ``n_lead_in``: rows of the lead-in when known (e.g. a measured trajectory, whose straight lead-in line is only
     straight to the arm's tracking error); default: found by ``lead_in_rows``."""
-    settings = settings or SimulationSettings()
-    t_in = np.asarray(t, float)
-    if settings.hold_free_end not in ('lead-in', 'always'):
-        raise DeploymentError(f"hold_free_end must be 'lead-in' or 'always', got {settings.hold_free_end!r}")
     t = np.asarray(t, float)
+    n_given = len(t)
     position = np.asarray(position, float)
     quaternion = np.asarray(quaternion, float)
-    friction = settings.friction if settings.friction is not None else (
-        rod.friction if rod.friction is not None else FRICTION_LEVELS['medium'])
-    t_wall = time.perf_counter()
-    L, h = rod.length_m, rod.radius_m
     # -- where the rod starts: hanging from the first pose, or below the hanging pose above start_xy
-    if settings.start_xy is not None:
-        start = np.asarray(settings.start_xy, float)
-        hang_p = np.array([start[0], start[1], h + L])
+    if start_xy is not None:
+        start = np.asarray(start_xy, float)
+        hang_p = np.array([start[0], start[1], rod.hanging_height_m])
         z_first = Rotation.from_quat(quaternion[0]).as_matrix()
         x0 = z_first[:, 0].copy()
         x0[2] = 0.0
@@ -147,33 +161,47 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
         if not is_hanging_pose(position[0], quaternion[0], rod):
             z_g = Rotation.from_quat(quaternion[0]).as_matrix()[:, 2]
             raise DeploymentError(
-                f'the trajectory does not start at a hanging pose (gripper {rod.length_m + h:.4f} m above the table, '
+                f'the trajectory does not start at a hanging pose (gripper {rod.hanging_height_m:.4f} m above the table, '
                 f'+z_gripper down): first pose at z = {position[0, 2]:.4f} m with +z_gripper = '
                 f'{np.round(z_g, 3).tolist()}; give the pattern\'s first point (--start X Y or --pattern) so that '
                 f'the simulation can lead in from the hanging pose above it')
         start = position[0, :2].copy()
-    n_lead = lead_in_rows(position) if n_lead_in is None else int(n_lead_in) + (len(position) - len(t_in))
+    n_lead = lead_in_rows(position) if n_lead_in is None else int(n_lead_in) + (len(position) - n_given)
     t = t - t[0]
     # -- replay speed: the gripper never faster than max_gripper_speed_m_s
     seg = np.linalg.norm(np.diff(position, axis=0), axis=1)
     dts = np.diff(t)
     peak = float(np.max(seg / np.maximum(dts, 1e-12))) if len(seg) else 0.0
-    ts = t * (peak / settings.max_gripper_speed_m_s) if peak > 0 else t    # replayed at the speed cap
-    rot = Rotation.from_quat(quaternion)
-    slerp = Slerp(ts, rot)
-    t_release = ts[n_lead - 1]
+    ts = t * (peak / max_gripper_speed_m_s) if peak > 0 else t    # replayed at the speed cap
+    return ReplaySchedule(t=ts, position=position, quaternion=quaternion, start_xy=start, lead_in_rows=n_lead,
+                          t_release=float(ts[n_lead - 1]))
 
-    def gripper(time_s):
-        tt = min(max(time_s, ts[0]), ts[-1])
-        p = np.array([np.interp(tt, ts, position[:, k]) for k in range(3)])
-        return p, slerp([tt]).as_matrix()[0]
+
+def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,
+                        progress=None, n_lead_in: int | None = None) -> DeploymentResult:
+    """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion).
+    ``n_lead_in``: rows of the lead-in when known (see :func:`replay_schedule`)."""
+    settings = settings or SimulationSettings()
+    if settings.hold_free_end not in ('lead-in', 'always'):
+        raise DeploymentError(f"hold_free_end must be 'lead-in' or 'always', got {settings.hold_free_end!r}")
+    t = np.asarray(t, float)
+    position = np.asarray(position, float)
+    quaternion = np.asarray(quaternion, float)
+    friction = settings.friction if settings.friction is not None else (
+        rod.friction if rod.friction is not None else FRICTION_LEVELS['medium'])
+    t_wall = time.perf_counter()
+    L, h = rod.length_m, rod.radius_m
+    sched = replay_schedule(t, position, quaternion, rod, settings.start_xy, settings.max_gripper_speed_m_s,
+                            n_lead_in)
+    ts, position, start, n_lead, t_release, gripper = (sched.t, sched.position, sched.start_xy, sched.lead_in_rows,
+                                                        sched.t_release, sched.gripper)
 
     # -- the rod, hanging straight from the first pose
     n_edges = max(int(round(L / settings.edge_length_m)), 4)
     s = np.linspace(0.0, L, n_edges + 1)
-    nodes = np.column_stack([np.full_like(s, start[0]), np.full_like(s, start[1]), h + s])
     p0, R0 = gripper(0.0)
-    nodes[-1] = p0                           # the hanging pose itself (checked above)
+    free = np.array([start[0], start[1], h])
+    nodes = free[None] + (s / L)[:, None] * (p0 - free)[None]     # straight to the hanging pose, uniformly stretched
     params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
     rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)

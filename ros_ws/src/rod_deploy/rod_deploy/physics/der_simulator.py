@@ -286,16 +286,18 @@ class DiscreteElasticRod:
             alpha = 1.0
             while True:
                 qt = q + alpha * dq
-                rt, _ = residual(qt, False)
+                # the full Newton step is accepted nearly always: its Hessian comes with the residual (one
+                # evaluation per iteration instead of a residual and then the Hessian at the same point)
+                rt, Ht = residual(qt, alpha == 1.0)
                 rtn = np.linalg.norm(rt)
                 if rtn < (1 - 1e-4 * alpha) * rn or alpha < 1e-6:
                     break
                 alpha *= 0.5
             q = qt
-            res, H = residual(q, True)
-            rn = np.linalg.norm(res)
+            res, rn = rt, rtn
             if rn < tol * fscale * self.ndof or (alpha == 1.0 and np.max(np.abs(dq)) < 1e-14):
                 break
+            H = Ht if Ht is not None else residual(q, True)[1]
         u = (q - q0) / dt
         self._commit(q, u, t1)
         return it

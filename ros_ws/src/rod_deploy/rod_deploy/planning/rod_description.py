@@ -51,6 +51,13 @@ class RodDescription:
         """Rod length in units of L_gb (the largest suspended length the planner may ask for)."""
         return self.length_m / self.gravito_bending_length_m
 
+    @property
+    def hanging_height_m(self):
+        """Height of the held node when the rod hangs at rest with its free end just touching the table (CONTRACTS.md
+        section 4's hanging pose): the centreline at z = h at the free end, plus the length, plus the stretch under
+        its own weight rho g L^2 / (2 E) = L^2 / (4 L_gb ks_bar) (5.0 mm for the paper's rod #3)."""
+        return self.radius_m + self.length_m + self.length_m ** 2 / (4.0 * self.gravito_bending_length_m * self.ks_bar)
+
 
 def rod_description_from_dict(d, source='rod description'):
     """Validate a mapping (as read from YAML or ROS parameters) into a :class:`RodDescription`."""

@@ -191,7 +191,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     t2 = time.perf_counter()
     Lgb = rod.gravito_bending_length_m
     Rt = local_frames(pattern.tangent)
-    qc = np.column_stack([pattern.xy, np.zeros(len(pattern.xy))])
+    # the connective node: the centreline of the rod lying on the table is at z = h (the grasp solver's floor)
+    qc = np.column_stack([pattern.xy, np.full(len(pattern.xy), rod.radius_m)])
     position = qc + np.einsum('nij,nj->ni', Rt, qbar) * Lgb
     R_grip = Rt @ Rotation.from_rotvec(rotvec).as_matrix() @ GRIPPER_IN_GRASP_FRAME
     # the hanging pose: rod straight up from P(0), gripper turned like the first grasp about the vertical
@@ -202,7 +203,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     x0 /= np.linalg.norm(x0)
     z0 = np.array([0.0, 0.0, -1.0])
     hang_R = np.column_stack([x0, np.cross(z0, x0), z0])
-    hang_p = np.array([pattern.xy[0, 0], pattern.xy[0, 1], rod.radius_m + rod.length_m])
+    hang_p = np.array([pattern.xy[0, 0], pattern.xy[0, 1], rod.hanging_height_m])
     n_lead = max(int(settings.lead_in_poses), 1)
     lam = np.arange(n_lead) / n_lead
     lead_p = hang_p[None] + lam[:, None] * (position[0] - hang_p)[None]

@@ -1,0 +1,455 @@
+"""An independent second opinion on the deployments: replay gripper trajectories in PyElastica 1.0.0 (a Cosserat
+rod simulator, used as a library) and score the deployed shape with our Eq. 17.
+
+    make bench-env          # .venv-bench with pyelastica==1.0.0, numpy, scipy, pyyaml, matplotlib
+    PYTHONPATH=ros_ws/src/rod_deploy .venv-bench/bin/python benchmarks/pyelastica_replay.py --validate
+    PYTHONPATH=ros_ws/src/rod_deploy .venv-bench/bin/python benchmarks/pyelastica_replay.py \
+        [--rods 3] [--friction medium] [--methods nn,intuitive,published] [--patterns all] [--commit-results]
+
+Set-up, the same as our simulator's (``rod_deploy.deployment.simulate``, CONTRACTS.md section 4) but in another
+model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet steps) of the rod's E, density and
+radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
+plane's response force) with its friction model (``RodPlaneContactWithAnisotropicFriction``, the same mu forward,
+backward and sideways; sideways friction acts on the rolling slip, so a round rod may roll), uniform viscous damping
+(the same 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
+to the trajectory's first (hanging) pose, uniformly stretched to reach it, and settles there at rest with both ends
+held; then the last node follows the gripper's position and the last element its directors (d1 = x_gripper,
+d3 = -z_gripper), the free end held during the lead-in (the same ``replay_schedule`` as our simulator, 0.01 m/s);
+then the gripper stays still for ``--settle`` s. The deployed shape: the nodes in contact with the table (centreline
+within 0.3 mm of z = h: the laid rod on PyElastica's element contact ripples by about 0.1 mm, and the rod rises
+0.7 mm within the next 1 cm element where it lifts off), from the free end to where the rod lifts off; the final
+nodes are kept in the .json.
+
+``--validate`` checks the set-up against closed forms first: a rod hanging from its top stretches by
+rho g L^2 / (2 E), and a short horizontal cantilever under its own weight deflects by q L^4 / (8 EI) at its tip.
+
+Patterns, rods and planners are those of ``deployment_table.py`` (``published``: the released planner's trajectories,
+rod #3). Results: ``pyelastica_replay.md`` / ``.json`` beside our simulator's table, the two e_mean side by side when
+``deployment_table.md`` of the same results folder has the case.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import re
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from results_dir import add_results_argument, results_path  # noqa: E402
+
+try:
+    import elastica as ea
+except ImportError:                     # pragma: no cover - the benchmark environment is separate
+    sys.exit('pyelastica_replay: error: PyElastica is not installed here; run `make bench-env` and use '
+             '.venv-bench/bin/python')
+
+from rod_deploy.deployment.metrics import eq17_error  # noqa: E402
+from rod_deploy.deployment.simulate import FRICTION_LEVELS, material_parameters, replay_schedule  # noqa: E402
+from rod_deploy.planning.rod_description import rod_description_from_dict  # noqa: E402
+
+G = 9.81
+FLIP = np.diag([1.0, -1.0, -1.0])      # director rows (d1, d2, d3) = FLIP @ R_gripper^T: d1 = x_g, d3 = -z_g
+
+
+@dataclass
+class ElasticaSettings:
+    element_length_m: float = 0.01    # PyElastica element length
+    dt_s: float = 3e-4                # position-Verlet step (explicit: below the axial wave's crossing time, 3.6e-4 s)
+    rotary_inertia_scale: float = 100.0   # the elements' rotary inertia times this (see rotary_inertia_scaled)
+    damping_per_s: float = 2.0        # uniform viscous damping, as in our simulator
+    contact_k_n_m: float = 200.0      # penalty stiffness of the table per element [N/m]
+    contact_nu_n_s_m: float = 0.1     # contact damping per element [N s/m]
+    slip_velocity_tol_m_s: float = 1e-4   # below this an element is sticking (PyElastica's static friction)
+    hang_settle_s: float = 2.0        # hanging at rest before the replay
+    settle_s: float = 1.0             # gripper still at the end
+    contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
+    grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
+
+
+def rotary_inertia_scaled(rod_e, scale):
+    """Scale the elements' rotary inertia (rho I, rho J) by ``scale``. Explicit steps of a Cosserat rod are bounded
+    by the shear-rotation mode, omega = sqrt(G A / (rho I)) = 2 sqrt(G / rho) / h (16,000 rad/s for rod #3, dt <
+    1.25e-4 s, whatever the element length); rotary inertia is negligible in a quasi-static deployment (rho I omega^2
+    against the weight), and scaling it by 100 leaves the axial wave's dl / c (3.6e-4 s for 1 cm elements of rod #3)
+    as the bound. Statics are unchanged."""
+    rod_e.mass_second_moment_of_inertia *= scale
+    rod_e.inv_mass_second_moment_of_inertia /= scale
+
+
+def rod_material(rod):
+    """(E [Pa], rho [kg/m^3]) as our simulator derives them from the rod description."""
+    p = material_parameters(rod, 0.5, 0.0)
+    A = math.pi * rod.radius_m ** 2
+    return p.EA / A, p.rho_A / A
+
+
+class _Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping, ea.Contact, ea.CallBacks):
+    pass
+
+
+class PrescribedEnds(ea.ConstraintBase):
+    """The last node and last element follow the gripper (position, velocity, directors, omega = 0); node 0 is
+    held at ``start`` until ``t_release``."""
+
+    def __init__(self, grid_t, grid_p, grid_Q, start, t_release, **kwargs):
+        super().__init__(**kwargs)
+        self.grid_t, self.grid_p, self.grid_Q = grid_t, grid_p, grid_Q
+        self.start = np.asarray(start, float)
+        self.t_release = t_release
+        self.dt_grid = grid_t[1] - grid_t[0]
+        self.grid_v = np.vstack([np.diff(grid_p, axis=0) / self.dt_grid, np.zeros((1, 3))])
+        self._cache_t, self._cache = None, None
+
+    def _pose(self, time):
+        """(p, Q, v) at ``time``, linear between grid poses (0.005 s apart: the blend of two directors that differ
+        by at most 1e-3 rad is orthonormal to 1e-7), cached: values and rates are asked at the same times."""
+        if time == self._cache_t:
+            return self._cache
+        u = min(max(float(time), 0.0), self.grid_t[-1]) / self.dt_grid
+        k = min(int(u), len(self.grid_t) - 2)
+        w = u - k
+        self._cache_t = time
+        self._cache = ((1 - w) * self.grid_p[k] + w * self.grid_p[k + 1],
+                       (1 - w) * self.grid_Q[k] + w * self.grid_Q[k + 1], self.grid_v[k])
+        return self._cache
+
+    def constrain_values(self, system, time):
+        p, Q, _ = self._pose(time)
+        system.position_collection[:, -1] = p
+        system.director_collection[:, :, -1] = Q
+        if time <= self.t_release:
+            system.position_collection[:, 0] = self.start
+
+    def constrain_rates(self, system, time):
+        _, _, v = self._pose(time)
+        system.velocity_collection[:, -1] = v
+        system.omega_collection[:, -1] = 0.0
+        if time <= self.t_release:
+            system.velocity_collection[:, 0] = 0.0
+
+
+def replay_in_elastica(cases, rod, friction, settings=None, progress=True):
+    """Replay trajectories in PyElastica, one rod per case (t, position, quaternion, start_xy or None), all in one
+    simulator (PyElastica steps its rods as one memory block: a batch costs far less than the cases one by one; the
+    rods do not touch each other). A case whose trajectory ends earlier keeps its gripper still until the last one
+    ends. Returns one dict(deployed_xy, nodes, gripper_path, replay_s) per case, and the wall time."""
+    from scipy.spatial.transform import Rotation, Slerp
+    s = settings or ElasticaSettings()
+    wall = time.perf_counter()
+    scheds = [replay_schedule(t, p, q, rod, start) for t, p, q, start in cases]
+    L, h = rod.length_m, rod.radius_m
+    E, rho = rod_material(rod)
+    n_el = max(int(round(L / s.element_length_m)), 4)
+    t_total = s.hang_settle_s + max(sc.t[-1] for sc in scheds) + s.settle_s
+    grid_t = np.arange(0.0, t_total + 2 * s.grid_s, s.grid_s)
+    sim = _Simulator()
+    plane = ea.Plane(plane_origin=np.zeros(3), plane_normal=np.array([0.0, 0.0, 1.0]))
+    sim.append(plane)
+    mu = np.array([friction, friction, friction])
+    rods, grids = [], []
+    for sched in scheds:
+        # the gripper on a fine grid (hanging phase first: the pose of t = 0 held for hang_settle_s)
+        tr = np.clip(grid_t - s.hang_settle_s, 0.0, sched.t[-1])
+        grid_p = np.column_stack([np.interp(tr, sched.t, sched.position[:, k]) for k in range(3)])
+        R = Slerp(sched.t, Rotation.from_quat(sched.quaternion))(tr).as_matrix()
+        grid_Q = np.einsum('ij,nkj->nik', FLIP, R)          # FLIP @ R^T per row of the grid
+        start = np.array([sched.start_xy[0], sched.start_xy[1], h])
+        p0 = grid_p[0]
+        normal = grid_Q[0][0].copy()
+        normal[2] = 0.0
+        normal /= np.linalg.norm(normal)
+        rod_e = ea.CosseratRod.straight_rod(n_el, start, np.array([0.0, 0.0, 1.0]), normal, L, h, rho,
+                                            youngs_modulus=E, shear_modulus=E / 3.0)
+        rotary_inertia_scaled(rod_e, s.rotary_inertia_scale)
+        # stretched uniformly from the free end to the first pose (the settling below finds the hanging shape)
+        lam = np.linspace(0.0, 1.0, n_el + 1)
+        rod_e.position_collection[:] = start[:, None] + lam[None] * (p0 - start)[:, None]
+        sim.append(rod_e)
+        sim.constrain(rod_e).using(PrescribedEnds, grid_t=grid_t, grid_p=grid_p, grid_Q=grid_Q, start=start,
+                                   t_release=s.hang_settle_s + sched.t_release)
+        sim.add_forcing_to(rod_e).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -G]))
+        sim.detect_contact_between(rod_e, plane).using(
+            ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
+            slip_velocity_tol=s.slip_velocity_tol_m_s, static_mu_array=mu, kinetic_mu_array=mu)
+        sim.dampen(rod_e).using(ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping_per_s,
+                                time_step=s.dt_s)
+        rods.append(rod_e)
+        grids.append(grid_p)
+    sim.finalize()
+    stepper = ea.PositionVerlet()
+    steps = int(math.ceil(t_total / s.dt_s))
+    now = np.float64(0.0)
+    report = max(steps // 50, 1)
+    for k in range(steps):
+        now = stepper.step(sim, now, s.dt_s)
+        if progress and (k + 1) % report == 0:
+            print(f'\r  pyelastica {len(cases)} rods, {100 * (k + 1) / steps:3.0f}% of {t_total:.0f} s simulated '
+                  f'({time.perf_counter() - wall:.0f} s)', end='', file=sys.stderr, flush=True)
+    if progress:
+        print(file=sys.stderr)
+    out = []
+    for rod_e, grid_p, sched in zip(rods, grids, scheds):
+        nodes = rod_e.position_collection.T.copy()
+        if not np.all(np.isfinite(nodes)):
+            raise ValueError('PyElastica diverged (reduce --dt)')
+        on_table = nodes[:, 2] <= h + s.contact_tolerance_m
+        k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(nodes)
+        out.append({'deployed_xy': nodes[:k_end, :2], 'nodes': nodes, 'gripper_path': grid_p,
+                    'replay_s': float(sched.t[-1])})
+    return out, time.perf_counter() - wall
+
+
+# ---------------------------------------------------------------------------------------------- closed forms
+
+class _Clamp(ea.ConstraintBase):
+    """Node 0 and element 0 held where they start."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.p = self.system.position_collection[:, 0].copy()
+        self.Q = self.system.director_collection[:, :, 0].copy()
+
+    def constrain_values(self, system, time):
+        system.position_collection[:, 0] = self.p
+        system.director_collection[:, :, 0] = self.Q
+
+    def constrain_rates(self, system, time):
+        system.velocity_collection[:, 0] = 0.0
+        system.omega_collection[:, 0] = 0.0
+
+
+def _settled_rod(direction, normal, length, radius, E, rho, n_el, dt, t_end, damping, rotary_scale=1.0):
+    sim = _Simulator()
+    rod_e = ea.CosseratRod.straight_rod(n_el, np.zeros(3), np.asarray(direction, float), np.asarray(normal, float),
+                                        length, radius, rho, youngs_modulus=E, shear_modulus=E / 3.0)
+    rotary_inertia_scaled(rod_e, rotary_scale)
+    sim.append(rod_e)
+    sim.constrain(rod_e).using(_Clamp)
+    sim.add_forcing_to(rod_e).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -G]))
+    sim.dampen(rod_e).using(ea.AnalyticalLinearDamper, uniform_damping_constant=damping, time_step=dt)
+    sim.finalize()
+    stepper = ea.PositionVerlet()
+    now = np.float64(0.0)
+    for _ in range(int(round(t_end / dt))):
+        now = stepper.step(sim, now, dt)
+    return rod_e
+
+
+def validate(rod):
+    """PyElastica against closed forms with the rod's material: hanging stretch and cantilever deflection."""
+    E, rho = rod_material(rod)
+    h, L = rod.radius_m, rod.length_m
+    out = []
+    # a rod hanging from its top: tip displacement rho g L^2 / (2E) (small strain)
+    s = ElasticaSettings()
+    rod_e = _settled_rod([0, 0, -1], [1, 0, 0], L, h, E, rho, n_el=int(round(L / s.element_length_m)), dt=s.dt_s,
+                         t_end=3.0, damping=20.0, rotary_scale=s.rotary_inertia_scale)
+    stretch = -rod_e.position_collection[2, -1] - L
+    closed = rho * G * L ** 2 / (2 * E)
+    out.append((f'hanging rod, stretch at the free end (the replay\'s elements, dt, rotary inertia x'
+                f'{s.rotary_inertia_scale:g})', stretch, closed))
+    # a horizontal cantilever of 0.5 L_gb under its own weight: tip deflection q L^4 / (8 EI) (w / Lc = 0.8 %);
+    # PyElastica's clamp (node 0 and the director of element 0) converges at first order in the element length
+    Lc = 0.5 * rod.gravito_bending_length_m
+    q = rho * math.pi * h ** 2 * G
+    closed_c = q * Lc ** 4 / (8 * E * math.pi * h ** 4 / 4)
+    for n_el, dt in ((10, 3e-5), (20, 1.5e-5), (40, 7.5e-6)):            # dt = dl / (2 c)
+        rod_c = _settled_rod([1, 0, 0], [0, 0, 1], Lc, h, E, rho, n_el=n_el, dt=dt, t_end=0.6, damping=60.0,
+                             rotary_scale=100.0)
+        out.append((f'cantilever 0.5 L_gb ({n_el} elements), tip deflection', -rod_c.position_collection[2, -1],
+                    closed_c))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- the table
+
+def read_our_table(path):
+    """{(rod, friction, pattern, planner): e_mean_cm} from a deployment_table.md."""
+    ours = {}
+    if not path.exists():
+        return ours
+    for line in path.read_text().splitlines():
+        m = re.match(r'\| #(\d) \| (\w+) \| (\w+) \| (\w+) \| ([0-9.na]+) \|', line)
+        if m and m.group(5) != 'nan':
+            ours[(int(m.group(1)), m.group(2), m.group(3), m.group(4))] = float(m.group(5))
+    return ours
+
+
+def main():
+    from deployment_table import REF, RODS, own_patterns, published_trajectory
+    from rod_deploy.planning.pattern_input import load_pattern
+    from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--validate', action='store_true', help='only the closed-form checks')
+    ap.add_argument('--rods', default='3')
+    ap.add_argument('--friction', default='medium')
+    ap.add_argument('--methods', default='nn,intuitive,published')
+    ap.add_argument('--patterns', default='all')
+    ap.add_argument('--dt', type=float, default=ElasticaSettings.dt_s)
+    ap.add_argument('--element', type=float, default=ElasticaSettings.element_length_m)
+    ap.add_argument('--contact-k', type=float, default=ElasticaSettings.contact_k_n_m)
+    ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
+    ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
+                    help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
+    ap.add_argument('--plots', action='store_true')
+    ap.add_argument('--tag', default='', help='suffix of the results files')
+    ap.add_argument('--merge', nargs='+', metavar='JSON',
+                    help='only write one table from the .json files of earlier runs (ours read again)')
+    ap.add_argument('--note', default='', help='a paragraph added to the merged table')
+    ap.add_argument('--ours', nargs='+', metavar='MD',
+                    help="our simulator's deployment tables (later ones override earlier ones); default: "
+                         "deployment_table.md in the results folder")
+    add_results_argument(ap)
+    args = ap.parse_args()
+    settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
+                                slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale)
+    t_all = time.perf_counter()
+    checks = []
+    if args.merge:
+        out = results_path(args, f'pyelastica_replay{args.tag}.md')
+        ours = {}
+        for f in args.ours or [out.parent / 'deployment_table.md']:
+            ours.update(read_our_table(Path(f)))
+        rows = [r for f in args.merge for r in json.loads(Path(f).read_text())['rows']]
+        pats = {f.stem: load_pattern(f) for f in sorted((REF / 'patterns').glob('*.txt'))} if (REF / 'patterns').exists() \
+            else {}
+        pats.update(own_patterns())
+        for r in rows:
+            if 'nodes_mm' in r and r['pattern'] in pats:
+                r['free_end_shift_mm'] = float(np.linalg.norm(np.array(r['nodes_mm'])[0, :2] -
+                                                              1e3 * pats[r['pattern']][0, :2]))
+            r['ours_e_mean_cm'] = ours.get((r['rod'], r['friction'], r['pattern'], r['planner']), float('nan'))
+        _write(out, rows, [], settings, sum(r['wall_s'] for r in rows))
+        if args.note:
+            out.write_text(out.read_text() + '\n' + args.note + '\n')
+        print(f'results: {out}')
+        return
+    if args.validate:
+        for rod_id in sorted({int(r) for r in args.rods.split(',')}):
+            for name, got, want in validate(rod_description_from_dict(RODS[rod_id])):
+                checks.append((rod_id, name, got, want))
+                print(f'rod #{rod_id} {name}: PyElastica {1e3 * got:.4f} mm, closed form {1e3 * want:.4f} mm '
+                      f'({100 * (got / want - 1):+.2f} %)', flush=True)
+        _write(results_path(args, f'pyelastica_validation{args.tag}.md'), [], checks, ElasticaSettings(),
+               time.perf_counter() - t_all)
+        return
+    patterns = {}
+    if (REF / 'patterns').exists():
+        for f in sorted((REF / 'patterns').glob('*.txt')):
+            patterns[f.stem] = load_pattern(f)
+    patterns.update(own_patterns())
+    if args.patterns != 'all':
+        patterns = {k: v for k, v in patterns.items() if k in args.patterns.split(',')}
+    out = results_path(args, f'pyelastica_replay{args.tag}.md')
+    ours = read_our_table(out.parent / 'deployment_table.md')
+    rows = []
+    for rod_id in (int(r) for r in args.rods.split(',')):
+        rod = rod_description_from_dict(RODS[rod_id])
+        for fr in args.friction.split(','):
+            for method in args.methods.split(','):
+                batch, names, failed = [], [], []
+                for name, P in patterns.items():
+                    if method == 'published' and (rod_id != 3 or not (REF / 'reference_outputs' /
+                                                                      f'{name}_traj_NN.txt').exists()):
+                        continue
+                    try:
+                        if method == 'published':
+                            t, p, q = published_trajectory(name)
+                            batch.append((t, p, q, tuple(P[0])))
+                        else:
+                            plan = plan_trajectory(P, rod, PlannerSettings(method=method))
+                            batch.append((plan.t, plan.position, plan.quaternion, None))
+                        names.append(name)
+                    except ValueError as exc:
+                        failed.append((name, str(exc)[:90]))
+                results, wall = replay_in_elastica(batch, rod, FRICTION_LEVELS[fr], settings) if batch else ([], 0)
+                for name, res in zip(names, results):
+                    P = patterns[name]
+                    e = eq17_error(P, res['deployed_xy'])
+                    rows.append({'rod': rod_id, 'friction': fr, 'pattern': name, 'planner': method,
+                                 'e_mean_cm': e['e_mean_cm'], 'sigma_cm': e['sigma_cm'], 'coverage': e['coverage'],
+                                 'wall_s': wall / len(results), 'note': '',
+                                 'nodes_mm': np.round(1e3 * res['nodes'], 3).tolist()})
+                    if args.plots:
+                        _plot(out.parent / f'elastica_{name}_{method}_rod{rod_id}_{fr}{args.tag}.png', res, P,
+                              f'PyElastica: {name}, {method}, rod #{rod_id}, {fr} friction; e_mean '
+                              f'{e["e_mean_cm"]:.3f} cm')
+                for name, note in failed:
+                    rows.append({'rod': rod_id, 'friction': fr, 'pattern': name, 'planner': method,
+                                 'e_mean_cm': float('nan'), 'sigma_cm': float('nan'), 'coverage': float('nan'),
+                                 'wall_s': 0.0, 'note': note})
+                for row in rows:
+                    if 'ours_e_mean_cm' in row:
+                        continue
+                    row['ours_e_mean_cm'] = ours.get((rod_id, fr, row['pattern'], method), float('nan'))
+                    print(f"rod #{rod_id} {fr:6s} {row['pattern']:14s} {method:10s} PyElastica e_mean "
+                          f"{row['e_mean_cm']:.3f} cm (ours {row['ours_e_mean_cm']:.3f}) sigma {row['sigma_cm']:.3f} "
+                          f"coverage {row['coverage']:.2f} {row['note']}", flush=True)
+                _write(out, rows, checks, settings, time.perf_counter() - t_all)
+    print(f'results: {out}')
+
+
+def _plot(path, res, pattern, title):
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(5, 5))
+    ax.plot(pattern[:, 0], pattern[:, 1], 'k-', lw=2, label='prescribed')
+    ax.plot(res['nodes'][:, 0], res['nodes'][:, 1], '-', color='0.7', lw=1, label='rod (all)')
+    ax.plot(res['deployed_xy'][:, 0], res['deployed_xy'][:, 1], 'r-', lw=1.5, label='deployed (PyElastica)')
+    ax.plot(res['gripper_path'][:, 0], res['gripper_path'][:, 1], 'b:', lw=1, label='gripper')
+    ax.set_aspect('equal')
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def _write(out, rows, checks, s, wall):
+    lines = ['# Independent replay in PyElastica 1.0.0, `benchmarks/pyelastica_replay.py`', '',
+             f'Machine: {platform.machine()}, {os.cpu_count()} cores; {wall:.0f} s in all. Cosserat rod, element '
+             f'{1e3 * s.element_length_m:g} mm, position Verlet dt {s.dt_s:g} s, uniform damping '
+             f'{s.damping_per_s:g}/s, rod-plane contact k {s.contact_k_n_m:g} N/m nu {s.contact_nu_n_s_m:g} N s/m '
+             f'with PyElastica\'s friction (static / kinetic mu, slip tolerance {s.slip_velocity_tol_m_s:g} m/s, '
+             f'sideways on the rolling slip); hanging {s.hang_settle_s:g} s first, gripper at 0.01 m/s, '
+             f'{s.settle_s:g} s still at the end. Eq. 17, N = 50 (ours). "ours": our DER simulator\'s e_mean '
+             f'from `deployment_table.md` in the same folder (or the tables given by --ours).', '',
+             '## Closed forms (`--validate`; the rod material of the table\'s rods)', '',
+             '| rod | check | PyElastica mm | closed form mm | rel. error |', '|---|---|---|---|---|']
+    for rod_id, name, got, want in checks:
+        lines.append(f'| #{rod_id} | {name} | {1e3 * got:.4f} | {1e3 * want:.4f} | {100 * (got / want - 1):+.2f} % |')
+    if not rows:
+        out.write_text('\n'.join(lines) + '\n')
+        return
+    lines = lines[:3] + ['', 'The closed-form checks of this set-up: `pyelastica_validation.md`.']
+    lines += ['', '## Deployments', '',
+              '| rod | friction | pattern | planner | PyElastica e_mean cm | sigma cm | coverage | free end moved mm | '
+              'ours e_mean cm | difference cm | wall s (batch / rods) | note |',
+              '|---|---|---|---|---|---|---|---|---|---|---|---|']
+    for r in rows:
+        d = r['e_mean_cm'] - r['ours_e_mean_cm']
+        lines.append(f"| #{r['rod']} | {r['friction']} | {r['pattern']} | {r['planner']} | {r['e_mean_cm']:.3f} | "
+                     f"{r['sigma_cm']:.3f} | {r['coverage']:.2f} | {r.get('free_end_shift_mm', float('nan')):.1f} | "
+                     f"{r['ours_e_mean_cm']:.3f} | {d:+.3f} | {r['wall_s']:.0f} | {r['note']} |")
+    by = {}
+    for r in rows:
+        if np.isfinite(r['e_mean_cm']):
+            by.setdefault(r['planner'], []).append(r['e_mean_cm'])
+    lines += ['', '| planner | cases | mean e_mean cm (PyElastica) | min | max |', '|---|---|---|---|---|']
+    for m, v in by.items():
+        lines.append(f'| {m} | {len(v)} | {np.mean(v):.3f} | {np.min(v):.3f} | {np.max(v):.3f} |')
+    out.write_text('\n'.join(lines) + '\n')
+    out.with_suffix('.json').write_text(json.dumps({'checks': [list(c) for c in checks], 'rows': rows}, indent=1))
+
+
+if __name__ == '__main__':
+    main()
