@@ -109,6 +109,7 @@ class StiffnessIdentifier(Node):
                                          'start a job with the parameters once the node is up')
         self._lock = threading.Lock()
         self._worker: threading.Thread | None = None
+        self._running = False      # a job is running: true from submit until just before its result goes out
         self._closed = False
         self._job_id = 0
         self._state = {'state': 'idle'}
@@ -135,7 +136,7 @@ class StiffnessIdentifier(Node):
     @property
     def busy(self) -> bool:
         with self._lock:
-            return self._worker is not None and self._worker.is_alive()
+            return self._running
 
     def _parameter_values(self) -> dict:
         values = {k: self.get_parameter(k).value for k in ('bag', 'experiment', 'out', 'method', 'diagnose')}
@@ -193,12 +194,13 @@ class StiffnessIdentifier(Node):
         with self._lock:
             if self._closed:
                 return False, 'node is shutting down'
-            if self._worker is not None and self._worker.is_alive():
+            if self._running:
                 message = f'busy with job {self._job_id}; request for {request.bag} refused'
                 self._publish_status(DiagnosticStatus.WARN, message, self._state)
                 self.get_logger().warn(message)
                 return False, message
             self._job_id += 1
+            self._running = True
             job_id = self._job_id
             self._state = {'state': 'running', 'job_id': job_id, **asdict(request)}
             self._last_stage = None
@@ -227,12 +229,12 @@ class StiffnessIdentifier(Node):
         except Exception as exc:   # noqa: BLE001 - a failed job is reported, never crashes the node
             if not isinstance(exc, ValueError):
                 self.get_logger().error(''.join(traceback.format_exception(exc)))
-            self._report_error(exc, asdict(request), job_id=job_id)
-            with self._lock:
+            with self._lock:     # idle before the error goes out: a client may send its next request at once
                 self._state = {'state': 'idle', 'last_job': job_id, 'last_outcome': 'error'}
+                self._running = False
+            self._report_error(exc, asdict(request), job_id=job_id)
             return
         elapsed = time.monotonic() - t0
-        self._publish(self.result_pub, String(data=text))
         self._publish_loop_markers(request, report)
         summary = {'state': 'done', 'job_id': job_id, 'elapsed_s': round(elapsed, 3), **asdict(request)}
         params = report.get('parameters')
@@ -240,8 +242,10 @@ class StiffnessIdentifier(Node):
             summary.update({f'parameter.{k}': v for k, v in params.items()})
         self._publish_status(DiagnosticStatus.OK, f'job {job_id} done in {elapsed:.1f} s', summary)
         self.get_logger().info(f'job {job_id} done in {elapsed:.1f} s: {params}')
-        with self._lock:
+        with self._lock:     # idle before the result goes out: a client may send its next request at once
             self._state = {'state': 'idle', 'last_job': job_id, 'last_outcome': 'done'}
+            self._running = False
+        self._publish(self.result_pub, String(data=text))
 
     def _publish_loop_markers(self, request: IdentificationRequest, report: dict):
         """The identified loop as markers (a failure here is logged: the report is already out)."""
@@ -314,7 +318,7 @@ class StiffnessIdentifier(Node):
             if self._closed:
                 return
             self._closed = True
-            running = self._worker is not None and self._worker.is_alive()
+            running = self._running
         if running:
             self.get_logger().warn(f'shutting down while job {self._job_id} runs; its result will not be published')
 
