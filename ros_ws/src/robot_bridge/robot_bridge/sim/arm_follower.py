@@ -11,6 +11,8 @@ Reference: a command (times from its start [s], positions, optional velocities) 
 spline (velocities given) or a C2 cubic spline with zero end velocities (not given), starting from the reference's
 current position and velocity when the first point lies in the future (as ros2_control's joint_trajectory_controller
 does); after the last point the reference holds it. A new command replaces the old one from the moment it starts.
+``excitation`` is the alternative to a command: the example recordings' excitation (``motion.reference``: still
+for ``rest_s``, the faded sum of sines, still again for ``end_rest_s``) from the current pose.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from .experiment import ExperimentSpec
 from .mjcf_builder import Numerics
+from .motion import SumOfSinesMotion, reference
 from .mujoco_loop import Controller, Effects, LoopSimulator, MeasurementNoise, Settling, _per_joint
 
 
@@ -39,6 +42,24 @@ class JointReference:
         if t_s <= self.t0_s or t_s >= self.t_end_s:     # before the start or after the end: hold still
             return q, np.zeros_like(q), np.zeros_like(q)
         return q, self.spline(tau, 1), self.spline(tau, 2)
+
+
+@dataclass
+class ExcitationReference:
+    """``motion.reference`` of duration_s seconds from q_start, started at simulation time t0_s, held at the end."""
+    t0_s: float
+    q_start: np.ndarray
+    duration_s: float
+    motion: SumOfSinesMotion
+
+    @property
+    def t_end_s(self) -> float:
+        return self.t0_s + self.duration_s
+
+    def __call__(self, t_s: float):
+        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+        q, qd, qdd = reference(np.array([tau]), self.q_start, self.duration_s, self.motion)
+        return q[0], qd[0], qdd[0]
 
 
 def hold_reference(q, t_s: float) -> JointReference:
@@ -109,6 +130,21 @@ class ArmFollower:
             return
         spline = (CubicHermiteSpline(t, q, qd) if qd is not None else CubicSpline(t, q, bc_type='clamped'))
         self.reference = JointReference(start - t[0], spline, start + (t[-1] - t[0]))
+
+    def excitation(self, duration_s: float, motion: SumOfSinesMotion | None = None) -> ExcitationReference:
+        """The excitation ``motion.reference`` (duration_s seconds in all, rests included) from the current reference
+        pose, starting now; follow it with ``follower.reference = ...`` (its t0_s may be moved later). Raises
+        ValueError if duration_s is too short for the motion's rests and ramps or the motion leaves the joint limits."""
+        motion = motion or SumOfSinesMotion()
+        q_start, _, _ = self.reference(self.t_s)
+        sim = self.sim
+        q = reference(np.linspace(0.0, duration_s, int(duration_s * 100) + 2), q_start, duration_s, motion)[0]
+        outside = (q < sim.lower - 1e-9) | (q > sim.upper + 1e-9)
+        if np.any(outside):
+            j = int(np.nonzero(outside.any(axis=0))[0][0])
+            raise ValueError(f'the excitation leaves the limits of {sim.arm_names[j]} [{sim.lower[j]}, {sim.upper[j]}]'
+                             ': reduce its amplitude')
+        return ExcitationReference(self.t_s, q_start, float(duration_s), motion)
 
     @property
     def trajectory_done(self) -> bool:
