@@ -29,10 +29,14 @@ def test_holding_the_clamped_loop_keeps_the_welds_closed_and_loads_the_arm():
     exp = load_experiment(EXPERIMENT)
     held = ArmFollower(exp, with_object=True)
     free = ArmFollower(exp, q_start=held.state()[0])
+    # at rest from the first sample on, the torque sensors included (not zero before the first step)
+    tau_first = held.measure()[2]
+    held.advance_to(0.5)
+    assert np.max(np.abs(tau_first)) > 5.0 and np.allclose(held.measure()[2], tau_first, atol=1e-6)
     for f in (held, free):
         q0, _ = f.state()
         f.command(np.array([1.0, 2.0]), np.array([q0 + 0.05, q0]))
-        f.advance_to(2.0)
+        f.advance_to(2.5)
     assert held.sim.weld_residual()[0] < 1e-5
     # the loop's weight and springs show in the measured torques (0.6 kg loop: at least 0.5 N m somewhere)
     assert np.max(np.abs(held.measure()[2] - free.measure()[2])) > 0.5

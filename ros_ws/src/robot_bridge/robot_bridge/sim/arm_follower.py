@@ -93,7 +93,7 @@ class ArmFollower:
         self.reference = hold_reference(q_start, 0.0)
         self.bias = _per_joint(self.effects.effort_bias_nm, n, 'effort_bias_nm')
         self.rng = np.random.default_rng(seed)
-        self.last_tau = np.zeros(n)
+        self.last_tau = self._control()       # the holding torque: what the torque sensors read before the first step
         keep = int(np.ceil(max(self.effects.position_delay_s, self.effects.effort_delay_s) / self.dt)) + 2
         self.history = deque(maxlen=keep)
         self._record()
@@ -153,9 +153,7 @@ class ArmFollower:
     def step(self, n_steps: int = 1):
         sim = self.sim
         for _ in range(n_steps):
-            q_ref, qd_ref, qdd_ref = self.reference(self.t_s)
-            tau_ff, mass = sim.inverse_dynamics(q_ref, qd_ref, qdd_ref)
-            tau = sim.control(tau_ff[0], mass[0], q_ref, qd_ref, self.controller)
+            tau = self._control()
             sim.data.ctrl[sim.arm_act] = tau
             self.last_tau = tau
             mujoco.mj_step(sim.model, sim.data)
@@ -163,6 +161,12 @@ class ArmFollower:
             if not np.all(np.isfinite(sim.data.qpos)):
                 raise RuntimeError(f'the arm simulation diverged at t = {self.t_s:.3f} s')
             self._record()
+
+    def _control(self) -> np.ndarray:
+        """The actuator torques for the current state and reference (clipped to the effort limits)."""
+        q_ref, qd_ref, qdd_ref = self.reference(self.t_s)
+        tau_ff, mass = self.sim.inverse_dynamics(q_ref, qd_ref, qdd_ref)
+        return self.sim.control(tau_ff[0], mass[0], q_ref, qd_ref, self.controller)
 
     def advance_to(self, t_s: float):
         """Step until the simulation time reaches t_s."""
