@@ -77,7 +77,8 @@ def test_logger_close_service_announces_the_bag(ros_context, wait_for, tmp_path)
 
 def test_sim_arm_excites_the_loop_live_and_the_identification_finds_its_springs(ros_context, wait_for, tmp_path):
     """sim_arm (MuJoCo, true k_theta = 5, k_phi = 3) runs the example excitation itself and stops publishing when
-    done -> joint_state_logger closes the bag after 2 s idle (a margin for a starved executor) -> stiffness_identifier identifies it."""
+    done -> joint_state_logger closes the bag after 2 s idle (a margin for a starved executor) ->
+    stiffness_identifier identifies it."""
     ctx = ros_context.context
     results = []
     probe = ros_context.add(Node('probe', context=ctx))
