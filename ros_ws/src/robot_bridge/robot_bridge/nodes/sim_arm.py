@@ -17,6 +17,15 @@ Parameters
   Undeclared effects (all off by default): arm_viscous [N m s/rad], arm_coulomb [N m], loop_damping [N m s/rad],
   effort_bias [N m] (one or one per joint), effort_gain, position_delay [s], effort_delay [s],
   noise_position [rad], noise_velocity [rad/s], noise_effort [N m], seed
+  excitation_s (double, 0 = off): run the example recordings' excitation itself (robot_bridge.sim.motion's
+              SumOfSinesMotion, as bags/generate_example_bags.py records it): once /joint_states has a subscriber,
+              hold still for the motion's rest (1 s), then excitation_s seconds of the faded sum of sines, the last
+              0.5 s of them still again (so excitation_s >= 4.5: two 2 s fades and the end rest); commands received
+              meanwhile replace it
+  excitation_scale (double, 1.0): its amplitudes, times the default ones (the 6-link example bag used 0.6)
+  stop_after_excitation (bool, false): stop publishing /joint_states when the excitation is done, so that a
+              joint_state_logger with close_after_idle_s closes its bag (and stiffness_identifier with
+              recorded_topic identifies it)
 
 The simulation runs in its own thread, stepping 1/timestep times per simulated second; trajectory callbacks only hand
 the command over.
@@ -37,9 +46,10 @@ from trajectory_msgs.msg import JointTrajectory
 
 from robot_bridge.kinematics.arm import BAXTER_RIGHT_JOINTS, default_urdf_path
 from robot_bridge.nodes.common import run_node
-from robot_bridge.sim.arm_follower import ArmFollower
+from robot_bridge.sim.arm_follower import ArmFollower, ExcitationReference
 from robot_bridge.sim.experiment import ArmSpec, ExperimentSpec, load_experiment
 from robot_bridge.sim.mjcf_builder import Numerics
+from robot_bridge.sim.motion import SumOfSinesMotion
 from robot_bridge.sim.mujoco_loop import Controller, Effects, MeasurementNoise
 
 COMMAND_TOPIC = '/arm_controller/joint_trajectory'
@@ -85,6 +95,10 @@ class SimArm(Node):
                                  float(param('noise_velocity', 0.0, 'velocity noise std [rad/s]')),
                                  float(param('noise_effort', 0.0, 'effort noise std [N m]')))
         seed = int(param('seed', 0, 'noise seed'))
+        excitation_s = float(param('excitation_s', 0.0, 'seconds of the example excitation after the rest (0: off)'))
+        excitation_scale = float(param('excitation_scale', 1.0, 'excitation amplitudes / the default ones'))
+        self.stop_after_excitation = bool(param('stop_after_excitation', False,
+                                                'stop publishing when the excitation is done'))
         if experiment:
             spec = load_experiment(experiment)
         else:
@@ -96,6 +110,16 @@ class SimArm(Node):
                                     controller, with_object=hold_object, k_theta=k_theta, k_phi=k_phi,
                                     numerics=Numerics(timestep_s=timestep), seed=seed)
         self.names = self.follower.joint_names
+        self.excitation: ExcitationReference | None = None     # set while waiting for a subscriber
+        self.excitation_started_s: float | None = None        # simulation time at which it started (None: not yet)
+        if excitation_s != 0:
+            default = SumOfSinesMotion()
+            shortest = 2 * default.ramp_s + default.end_rest_s
+            if excitation_s < shortest:
+                raise ValueError(f'excitation_s must be 0 (off) or at least {shortest:g} s (two {default.ramp_s:g} s '
+                                 f'fades and the {default.end_rest_s:g} s end rest), got {excitation_s:g}')
+            motion = SumOfSinesMotion(amplitudes_rad=tuple(excitation_scale * np.asarray(default.amplitudes_rad)))
+            self.excitation = self.follower.excitation(motion.rest_s + excitation_s, motion)
         self._lock = threading.Lock()
         self._pending = None
         self.commands_received = 0
@@ -151,10 +175,19 @@ class SimArm(Node):
             if pending is not None:
                 try:
                     f.command(*pending)
+                    self.excitation = None          # a command replaces an excitation not started yet
                     self.commands_received += 1
                     self.trajectory_start_s = f.reference.t0_s
                 except ValueError as exc:
                     self.get_logger().error(f'ignored a trajectory: {exc}')
+            if self.excitation is not None and self.pub.get_subscription_count() > 0:
+                excitation, self.excitation = self.excitation, None
+                excitation.t0_s = self.excitation_started_s = f.t_s
+                f.reference = excitation
+                self.get_logger().info(f'excitation started ({excitation.duration_s:g} s, rests included)')
+            if self.excitation_done and self.stop_after_excitation:
+                self.get_logger().info('excitation done: stopped publishing /joint_states')
+                return
             f.advance_to(k * period)
             q, qd, tau = f.measure()
             msg = JointState(name=self.names, position=q.tolist(), velocity=qd.tolist(), effort=tau.tolist())
@@ -178,6 +211,12 @@ class SimArm(Node):
     @property
     def sim_time_s(self) -> float:
         return self.follower.t_s
+
+    @property
+    def excitation_done(self) -> bool:
+        """The excitation (excitation_s > 0) has run to its end (or a command replaced it)."""
+        return (self.excitation_started_s is not None
+                and (self.commands_received > 0 or self.follower.t_s >= self.follower.reference.t_end_s))
 
     @property
     def trajectory_done(self) -> bool:

@@ -11,6 +11,8 @@ Reference: a command (times from its start [s], positions, optional velocities) 
 spline (velocities given) or a C2 cubic spline with zero end velocities (not given), starting from the reference's
 current position and velocity when the first point lies in the future (as ros2_control's joint_trajectory_controller
 does); after the last point the reference holds it. A new command replaces the old one from the moment it starts.
+``excitation`` is the alternative to a command: the example recordings' excitation (``motion.reference``: still
+for ``rest_s``, the faded sum of sines, still again for ``end_rest_s``) from the current pose.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from .experiment import ExperimentSpec
 from .mjcf_builder import Numerics
+from .motion import SumOfSinesMotion, reference
 from .mujoco_loop import Controller, Effects, LoopSimulator, MeasurementNoise, Settling, _per_joint
 
 
@@ -39,6 +42,24 @@ class JointReference:
         if t_s <= self.t0_s or t_s >= self.t_end_s:     # before the start or after the end: hold still
             return q, np.zeros_like(q), np.zeros_like(q)
         return q, self.spline(tau, 1), self.spline(tau, 2)
+
+
+@dataclass
+class ExcitationReference:
+    """``motion.reference`` of duration_s seconds from q_start, started at simulation time t0_s, held at the end."""
+    t0_s: float
+    q_start: np.ndarray
+    duration_s: float
+    motion: SumOfSinesMotion
+
+    @property
+    def t_end_s(self) -> float:
+        return self.t0_s + self.duration_s
+
+    def __call__(self, t_s: float):
+        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+        q, qd, qdd = reference(np.array([tau]), self.q_start, self.duration_s, self.motion)
+        return q[0], qd[0], qdd[0]
 
 
 def hold_reference(q, t_s: float) -> JointReference:
@@ -72,7 +93,7 @@ class ArmFollower:
         self.reference = hold_reference(q_start, 0.0)
         self.bias = _per_joint(self.effects.effort_bias_nm, n, 'effort_bias_nm')
         self.rng = np.random.default_rng(seed)
-        self.last_tau = np.zeros(n)
+        self.last_tau = self._control()       # the holding torque: what the torque sensors read before the first step
         keep = int(np.ceil(max(self.effects.position_delay_s, self.effects.effort_delay_s) / self.dt)) + 2
         self.history = deque(maxlen=keep)
         self._record()
@@ -110,6 +131,21 @@ class ArmFollower:
         spline = (CubicHermiteSpline(t, q, qd) if qd is not None else CubicSpline(t, q, bc_type='clamped'))
         self.reference = JointReference(start - t[0], spline, start + (t[-1] - t[0]))
 
+    def excitation(self, duration_s: float, motion: SumOfSinesMotion | None = None) -> ExcitationReference:
+        """The excitation ``motion.reference`` (duration_s seconds in all, rests included) from the current reference
+        pose, starting now; follow it with ``follower.reference = ...`` (its t0_s may be moved later). Raises
+        ValueError if duration_s is too short for the motion's rests and ramps or the motion leaves the joint limits."""
+        motion = motion or SumOfSinesMotion()
+        q_start, _, _ = self.reference(self.t_s)
+        sim = self.sim
+        q = reference(np.linspace(0.0, duration_s, int(duration_s * 100) + 2), q_start, duration_s, motion)[0]
+        outside = (q < sim.lower - 1e-9) | (q > sim.upper + 1e-9)
+        if np.any(outside):
+            j = int(np.nonzero(outside.any(axis=0))[0][0])
+            raise ValueError(f'the excitation leaves the limits of {sim.arm_names[j]} [{sim.lower[j]}, {sim.upper[j]}]'
+                             ': reduce its amplitude')
+        return ExcitationReference(self.t_s, q_start, float(duration_s), motion)
+
     @property
     def trajectory_done(self) -> bool:
         return self.t_s >= self.reference.t_end_s
@@ -117,9 +153,7 @@ class ArmFollower:
     def step(self, n_steps: int = 1):
         sim = self.sim
         for _ in range(n_steps):
-            q_ref, qd_ref, qdd_ref = self.reference(self.t_s)
-            tau_ff, mass = sim.inverse_dynamics(q_ref, qd_ref, qdd_ref)
-            tau = sim.control(tau_ff[0], mass[0], q_ref, qd_ref, self.controller)
+            tau = self._control()
             sim.data.ctrl[sim.arm_act] = tau
             self.last_tau = tau
             mujoco.mj_step(sim.model, sim.data)
@@ -127,6 +161,12 @@ class ArmFollower:
             if not np.all(np.isfinite(sim.data.qpos)):
                 raise RuntimeError(f'the arm simulation diverged at t = {self.t_s:.3f} s')
             self._record()
+
+    def _control(self) -> np.ndarray:
+        """The actuator torques for the current state and reference (clipped to the effort limits)."""
+        q_ref, qd_ref, qdd_ref = self.reference(self.t_s)
+        tau_ff, mass = self.sim.inverse_dynamics(q_ref, qd_ref, qdd_ref)
+        return self.sim.control(tau_ff[0], mass[0], q_ref, qd_ref, self.controller)
 
     def advance_to(self, t_s: float):
         """Step until the simulation time reaches t_s."""
