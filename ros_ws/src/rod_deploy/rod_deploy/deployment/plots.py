@@ -53,14 +53,8 @@ def plot_deployment(path, result, pattern_xy=None, title=''):
                      f'coverage {e["coverage"]:.2f}; friction {result.friction:g}', fontsize=9)
     else:
         ax.set_title(f'{title}\nfriction {result.friction:g}', fontsize=9)
-    ax.set_aspect('equal', adjustable='datalim')
-    ax.set_xlabel('x [m]')
-    ax.set_ylabel('y [m]')
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _table_axes(ax)
+    _save(fig, path)
 
 
 def plot_correction(path, pattern_xy, diagnosis, replan, report):
@@ -84,11 +78,20 @@ def plot_correction(path, pattern_xy, diagnosis, replan, report):
     else:
         b.set_title('after: not simulated (--replan --simulate)', fontsize=9)
     for ax in (a, b):
-        ax.set_aspect('equal', adjustable='datalim')
-        ax.set_xlabel('x [m]')
-        ax.set_ylabel('y [m]')
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        _table_axes(ax)
+    _save(fig, path)
+
+
+def _table_axes(ax):
+    """Table-frame axes in metres, equal scale, grid and legend."""
+    ax.set_aspect('equal', adjustable='datalim')
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m]')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def _save(fig, path):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

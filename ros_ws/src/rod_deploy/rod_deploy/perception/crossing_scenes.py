@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from rod_deploy.perception.centreline import arc_length, resample
-from rod_deploy.perception.synthetic import curve_from_function, random_rod_curve
+from rod_deploy.perception.synthetic import curve_from_function, random_rod_curve, table_background
 
 # BGR rod colours; several are close to each other (a colour alone often cannot decide)
 PALETTE = [(90, 90, 230), (60, 220, 200), (200, 200, 60), (50, 200, 50), (230, 120, 200), (40, 140, 250),
@@ -103,15 +103,7 @@ def render_rod_scene(shape, curves, widths, colours, crossings, background=(60, 
     :func:`curve_crossings` with ``over`` set."""
     rng = np.random.default_rng(seed)
     h, w = shape[:2]
-    img = np.empty((h, w, 3), np.float32)
-    img[:] = np.asarray(background, np.float32)
-    if gradient:
-        ramp = 1.0 - gradient * (np.arange(w, dtype=np.float32) / max(w - 1, 1))
-        img *= ramp[None, :, None]
-    if texture:
-        blot = cv2.GaussianBlur(rng.normal(0, 1, (h, w)).astype(np.float32), (0, 0), 4)
-        blot *= texture / max(float(blot.std()), 1e-6)
-        img += blot[:, :, None]
+    img = table_background(shape, background, gradient, texture, 4.0, rng)
     curves = [resample(np.asarray(c, float), 1.0) for c in curves]
     heights = _heights(curves, widths, crossings)
     light = np.array([np.sin(light_azimuth_rad), np.cos(light_azimuth_rad)])     # (row, col) in the plane

@@ -30,13 +30,11 @@ def stroke_coverage(shape, curve: np.ndarray, width_px: float) -> np.ndarray:
     return cov
 
 
-def draw_strokes(shape, curves, widths, colours, background=(235, 235, 230), noise_std: float = 2.0,
-                 gradient: float = 0.0, blur_sigma: float = 0.0, texture: float = 0.0,
-                 seed: int = 0) -> np.ndarray:
-    """BGR uint8 image: ``curves`` with ``widths`` [px] and BGR ``colours`` over a background that may
-    have a linear illumination ``gradient`` (fraction of brightness across the image), a random
-    ``texture`` (std of smooth blotches, grey levels), Gaussian ``noise_std`` and optical blur."""
-    rng = np.random.default_rng(seed)
+def table_background(shape, background, gradient: float, texture: float, texture_sigma_px: float,
+                     rng: np.random.Generator) -> np.ndarray:
+    """Float32 BGR image of an empty table: the ``background`` colour, a linear illumination ``gradient``
+    (fraction of brightness lost across the image) and smooth random blotches of std ``texture`` grey levels
+    (Gaussian-blurred noise of ``texture_sigma_px``, drawn from ``rng`` only when ``texture`` is set)."""
     h, w = shape[:2]
     img = np.empty((h, w, 3), np.float32)
     img[:] = np.asarray(background, np.float32)
@@ -44,9 +42,20 @@ def draw_strokes(shape, curves, widths, colours, background=(235, 235, 230), noi
         ramp = 1.0 - gradient * (np.arange(w, dtype=np.float32) / max(w - 1, 1))
         img *= ramp[None, :, None]
     if texture:
-        blot = cv2.GaussianBlur(rng.normal(0, 1, (h, w)).astype(np.float32), (0, 0), 6)
+        blot = cv2.GaussianBlur(rng.normal(0, 1, (h, w)).astype(np.float32), (0, 0), texture_sigma_px)
         blot *= texture / max(float(blot.std()), 1e-6)
         img += blot[:, :, None]
+    return img
+
+
+def draw_strokes(shape, curves, widths, colours, background=(235, 235, 230), noise_std: float = 2.0,
+                 gradient: float = 0.0, blur_sigma: float = 0.0, texture: float = 0.0,
+                 seed: int = 0) -> np.ndarray:
+    """BGR uint8 image: ``curves`` with ``widths`` [px] and BGR ``colours`` over a background that may
+    have a linear illumination ``gradient`` (fraction of brightness across the image), a random
+    ``texture`` (std of smooth blotches, grey levels), Gaussian ``noise_std`` and optical blur."""
+    rng = np.random.default_rng(seed)
+    img = table_background(shape, background, gradient, texture, 6.0, rng)
     for curve, width, colour in zip(curves, widths, colours):
         cov = stroke_coverage(shape, curve, width)[:, :, None]
         img = img * (1.0 - cov) + np.asarray(colour, np.float32) * cov
