@@ -57,6 +57,19 @@ def own_patterns():
     return out
 
 
+def all_patterns(selection='all'):
+    """The published patterns (when the reference is present) and ours, by name; ``selection``: 'all' or
+    comma-separated names."""
+    patterns = {}
+    if (REF / 'patterns').exists():
+        for f in sorted((REF / 'patterns').glob('*.txt')):
+            patterns[f.stem] = load_pattern(f)
+    patterns.update(own_patterns())
+    if selection != 'all':
+        patterns = {k: v for k, v in patterns.items() if k in selection.split(',')}
+    return patterns
+
+
 def published_trajectory(name):
     d = np.loadtxt(REF / 'reference_outputs' / f'{name}_traj_NN.txt')
     q = d[:, 3:7] / np.linalg.norm(d[:, 3:7], axis=1, keepdims=True)
@@ -75,13 +88,7 @@ def main():
     ap.add_argument('--plots', action='store_true')
     add_results_argument(ap)
     args = ap.parse_args()
-    patterns = {}
-    if (REF / 'patterns').exists():
-        for f in sorted((REF / 'patterns').glob('*.txt')):
-            patterns[f.stem] = load_pattern(f)
-    patterns.update(own_patterns())
-    if args.patterns != 'all':
-        patterns = {k: v for k, v in patterns.items() if k in args.patterns.split(',')}
+    patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')
     out = results_path(args, 'deployment_table.md')

@@ -284,8 +284,7 @@ def read_our_table(path):
 
 
 def main():
-    from deployment_table import REF, RODS, own_patterns, published_trajectory
-    from rod_deploy.planning.pattern_input import load_pattern
+    from deployment_table import REF, RODS, all_patterns, published_trajectory
     from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
 
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -320,9 +319,7 @@ def main():
         for f in args.ours or [out.parent / 'deployment_table.md']:
             ours.update(read_our_table(Path(f)))
         rows = [r for f in args.merge for r in json.loads(Path(f).read_text())['rows']]
-        pats = {f.stem: load_pattern(f) for f in sorted((REF / 'patterns').glob('*.txt'))} if (REF / 'patterns').exists() \
-            else {}
-        pats.update(own_patterns())
+        pats = all_patterns()
         for r in rows:
             if 'nodes_mm' in r and r['pattern'] in pats:
                 r['free_end_shift_mm'] = float(np.linalg.norm(np.array(r['nodes_mm'])[0, :2] -
@@ -342,13 +339,7 @@ def main():
         _write(results_path(args, f'pyelastica_validation{args.tag}.md'), [], checks, ElasticaSettings(),
                time.perf_counter() - t_all)
         return
-    patterns = {}
-    if (REF / 'patterns').exists():
-        for f in sorted((REF / 'patterns').glob('*.txt')):
-            patterns[f.stem] = load_pattern(f)
-    patterns.update(own_patterns())
-    if args.patterns != 'all':
-        patterns = {k: v for k, v in patterns.items() if k in args.patterns.split(',')}
+    patterns = all_patterns(args.patterns)
     out = results_path(args, f'pyelastica_replay{args.tag}.md')
     ours = read_our_table(out.parent / 'deployment_table.md')
     rows = []
