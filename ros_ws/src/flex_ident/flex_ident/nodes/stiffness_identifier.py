@@ -108,7 +108,6 @@ class StiffnessIdentifier(Node):
         run_on_start = declare_parameter(self, 'run_on_start', False,
                                          'start a job with the parameters once the node is up')
         self._lock = threading.Lock()
-        self._worker: threading.Thread | None = None
         self._running = False      # a job is running: true from submit until just before its result goes out
         self._closed = False
         self._job_id = 0
@@ -206,9 +205,9 @@ class StiffnessIdentifier(Node):
             self._last_stage = None
             message = f'job {job_id} started: {request.bag} with {request.experiment} -> {request.out}'
             self.get_logger().info(message)
-            self._worker = threading.Thread(target=self._run_job, args=(job_id, request), daemon=True,
-                                            name=f'identification_job_{job_id}')
-            self._worker.start()
+            worker = threading.Thread(target=self._run_job, args=(job_id, request), daemon=True,
+                                      name=f'identification_job_{job_id}')
+            worker.start()
         return True, message
 
     # -- the job (worker thread) ---------------------------------------------------------------------------------
