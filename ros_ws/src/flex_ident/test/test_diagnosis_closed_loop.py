@@ -33,7 +33,7 @@ def model():
 def test_candidates_are_named_coefficients_and_terms(model):
     effects = {e.key: e for e in candidate_effects(model)}
     assert set(effects) == {'loop_damping', 'arm_viscous', 'arm_coulomb', 'torque_bias', 'torque_gain', 'time_offset',
-                            'arm_viscous_per_joint', 'arm_coulomb_per_joint', 'loop_rest_angle'}
+                            'arm_viscous_per_joint', 'arm_coulomb_per_joint', 'loop_rest_angle', 'loop_mass', 'payload'}
     n_loop = model.n - 7
     damped = with_effect(model, effects['loop_damping'])
     c = damped.coef_index('c_loop')
@@ -263,3 +263,52 @@ def test_per_joint_dry_friction_is_named_per_joint_and_no_delay_is_invented(mode
     assert std['f_arm_right_w2'] > 5 * std['f_arm_right_e1']
     k = added[0]['declared_parameters_after']
     assert k['k_theta'] == pytest.approx(5.0, rel=0.01) and k['k_phi'] == pytest.approx(3.0, rel=0.01)
+
+
+def test_loop_mass_and_payload_rebuild_the_model_and_their_difference_columns_converge(model):
+    """The loop-mass and payload candidates are outer parameters (the masses are constants of the compiled kernel):
+    they rebuild the model (loop links' mass and inertia x (1 + dm), a point mass at the grasp frame) and their
+    Jacobian columns are central differences through the whole pipeline; the default step agrees with a step ten times
+    finer."""
+    from flex_ident.diagnosis import closed_loop
+    from flex_ident.diagnosis.effects import OUTER_PARAMETERS, apply_outer_parameters, loop_coords
+    from flex_ident.identification.measurement import load_measurements
+    effects = {e.key: e for e in candidate_effects(model)}
+    assert effects['loop_mass'].coefficients == ('dm_loop',) and effects['payload'].coefficients == ('payload_kg',)
+    assert with_effect(model, effects['loop_mass']) is model          # no model term
+    loop, arm = loop_coords(model), model.measured_coords
+    heavy = apply_outer_parameters(model, {'dm_loop': 0.25, 'payload_kg': 0.5})
+    assert heavy.body_mass[loop].sum() == pytest.approx(1.25 * 0.6)
+    np.testing.assert_allclose(heavy.body_inertia[loop], 1.25 * model.body_inertia[loop])
+    coord, offset = model.frames['ee']
+    assert heavy.body_mass[arm].sum() == pytest.approx(model.body_mass[arm].sum() + 0.5)
+    moment = heavy.body_mass[coord] * heavy.body_com[coord]
+    np.testing.assert_allclose(moment, model.body_mass[coord] * model.body_com[coord] + 0.5 * offset[:3, 3])
+    assert model.body_mass[loop].sum() == pytest.approx(0.6)          # the original is untouched
+    assert reported_parameters(effects['loop_mass'], [0.25]) == {'dm_loop': 0.25, 'loop_mass_scale': 1.25}
+
+    data, _ = load_measurements(REPO / 'bags' / 'example_loop6' / 'bag', arm_joint_names(model), (0.0, 1.5))
+    coef = model.coef_values()
+    q_guess = np.zeros(model.n)
+    q_guess[model.measured_coords] = data.theta[0]
+    eq = static_equilibrium(model, coef, q_guess)
+    fb = lqr_tracking_feedback(model, coef, eq.q, data.dt, horizon_steps=len(data.t_s))
+    free = ['k_theta', 'k_phi', 'dm_loop', 'payload_kg']
+    problem = closed_loop.OuterParameterProblem(model, data, free, [1e-3, 1e-3, -0.8, 0.0], [1e3, 1e3, 4, 20], fb,
+                                                1, 'end_effector', 'midpoint')
+    p = np.array([5.0, 3.0, 0.1, 0.05])
+    ev = problem.evaluate(p, jacobian=True)
+    assert ev.ok and ev.jacobian.shape == (ev.residual.size, 4)
+    for i, name in ((2, 'dm_loop'), (3, 'payload_kg')):
+        h = OUTER_PARAMETERS[name] / 10
+        up, down = p.copy(), p.copy()
+        up[i] += h
+        down[i] -= h
+        fine = (problem.evaluate(up).residual - problem.evaluate(down).residual).ravel() / (2 * h)
+        assert np.max(np.abs(fine)) > 0
+        assert np.max(np.abs(ev.jacobian[:, i] - fine)) < 1e-3 * np.max(np.abs(fine)), name
+    # the coefficients' columns are still the exact sensitivities of the rebuilt model
+    inner = IdentificationProblem(apply_outer_parameters(model, {'dm_loop': 0.1, 'payload_kg': 0.05}), data,
+                                  ['k_theta', 'k_phi'], [1e-3, 1e-3], [1e3, 1e3], fb, substeps=problem.substeps)
+    np.testing.assert_allclose(ev.jacobian[:, :2], inner.evaluate(p[:2], jacobian=True).jacobian, rtol=1e-9,
+                               atol=1e-12)

@@ -29,8 +29,9 @@ and measured on the held-out rest (:func:`add_validation`); the final residual i
 itself shows (:func:`measured_noise_level`), and a residual far above it is reported as a wrong model structure
 (:func:`structure_warning`).
 
-Measured time offsets are no model term: :class:`TimeShiftedProblem` evaluates the problem on torques shifted in
-time by a spline and adds their finite-difference column to the residual Jacobian.
+Measured time offsets, the loop's mass and a payload are no model terms: :class:`OuterParameterProblem` evaluates
+the problem on torques shifted in time by a spline or on a model with changed masses, and adds their
+finite-difference columns to the residual Jacobian.
 """
 from __future__ import annotations
 
@@ -44,7 +45,8 @@ from scipy.interpolate import CubicSpline
 from ..identification.optimizers import levenberg_marquardt
 from ..identification.problem import IdentificationProblem, MeasuredData, ParameterTransform
 from ..identification.report import hac_parameter_covariance
-from .effects import DELAY_PARAMETER, Effect, candidate_effects, describe, reported_parameters, with_effect
+from .effects import (DELAY_PARAMETER, OUTER_PARAMETERS, Effect, apply_outer_parameters, candidate_effects, describe,
+                      reported_parameters, with_effect)
 
 BIC_STRONG = 10.0
 MIN_RSS_DROP = 0.02
@@ -56,49 +58,61 @@ SCREEN_MIN_DROP = 0.005     # ... among those whose predicted residual drop is a
                             # underpredict damping of lightly damped loop modes by an order of magnitude)
 
 
-class TimeShiftedProblem:
-    """An identification problem whose last free parameter may be the torque time offset ``delay_s``: the model is
-    driven by tau_meas(t + delay_s) (cubic spline, ends held). Same interface as IdentificationProblem for the
-    optimizers (evaluate, transform, substeps, discretization_changed)."""
+class OuterParameterProblem:
+    """An identification problem whose last free parameters may be *outer parameters* (effects.OUTER_PARAMETERS, in
+    that order), which are no model coefficients and so have no sensitivities in the compiled kernel:
+
+    * ``delay_s``: the model is driven by tau_meas(t + delay_s) (cubic spline, ends held);
+    * ``dm_loop``, ``payload_kg``: the loop's masses x (1 + dm_loop) and a point mass at the grasp frame
+      (effects.apply_outer_parameters), i.e. a rebuilt model.
+
+    Each distinct set of outer values gets its own inner IdentificationProblem (the same feedback); the coefficients'
+    Jacobian columns are the inner problem's forward sensitivities, each outer parameter's column is a central
+    difference with the step effects.OUTER_PARAMETERS gives (two extra simulations each; a one-sided difference when
+    one of them fails). Same interface as IdentificationProblem for the optimizers (evaluate, transform, substeps,
+    discretization_changed)."""
 
     def __init__(self, model, data: MeasuredData, free: list, lower, upper, feedback, substeps: int,
                  cost_kind: str, torque_hold: str):
         self.model, self.data, self.feedback = model, data, feedback
         self.free = list(free)
-        self.with_delay = DELAY_PARAMETER in self.free
-        if self.with_delay and self.free[-1] != DELAY_PARAMETER:
-            raise ValueError(f'{DELAY_PARAMETER} must be the last free parameter')
-        self.coef_free = self.free[:-1] if self.with_delay else self.free
+        self.outer = [n for n in OUTER_PARAMETERS if n in self.free]
+        if self.free[len(self.free) - len(self.outer):] != self.outer:
+            raise ValueError(f'the outer parameters {self.outer} must come last, in this order')
+        self.coef_free = self.free[:len(self.free) - len(self.outer)]
         self.transform = ParameterTransform(np.asarray(lower, float), np.asarray(upper, float))
         self.substeps = int(substeps)
         self.cost_kind, self.torque_hold = cost_kind, torque_hold
         self.discretization_changed = False
         self.evaluations = 0
-        self._spline = CubicSpline(data.t_s, data.tau, axis=0) if self.with_delay else None
+        self._spline = CubicSpline(data.t_s, data.tau, axis=0) if DELAY_PARAMETER in self.outer else None
         self._cache = {}
-        self.cost = self._inner(0.0).cost
+        self.cost = self._inner((0.0,) * len(self.outer)).cost
 
-    def _inner(self, delay_s: float) -> IdentificationProblem:
-        key = round(float(delay_s), 12)
+    def _inner(self, outer_values) -> IdentificationProblem:
+        key = tuple(round(float(v), 12) for v in outer_values)
         if key not in self._cache:
+            values = dict(zip(self.outer, key))
             d = self.data
             tau = d.tau
-            if key != 0.0:
-                t = np.clip(d.t_s + key, d.t_s[0], d.t_s[-1])
+            delay = values.get(DELAY_PARAMETER, 0.0)
+            if delay != 0.0:
+                t = np.clip(d.t_s + delay, d.t_s[0], d.t_s[-1])
                 tau = self._spline(t)
             shifted = MeasuredData(d.t_s, d.names, d.theta, tau)
             lo = np.zeros(len(self.coef_free))
             if len(self._cache) > 8:
                 self._cache.clear()
-            self._cache[key] = IdentificationProblem(self.model, shifted, self.coef_free, lo, lo + np.inf,
-                                                     self.feedback, substeps=self.substeps,
-                                                     cost_kind=self.cost_kind, torque_hold=self.torque_hold)
+            self._cache[key] = IdentificationProblem(apply_outer_parameters(self.model, values), shifted,
+                                                     self.coef_free, lo, lo + np.inf, self.feedback,
+                                                     substeps=self.substeps, cost_kind=self.cost_kind,
+                                                     torque_hold=self.torque_hold)
         inner = self._cache[key]
         inner.substeps = max(inner.substeps, self.substeps)
         return inner
 
-    def _run(self, delay_s, coefs, jacobian):
-        inner = self._inner(delay_s)
+    def _run(self, outer_values, coefs, jacobian):
+        inner = self._inner(outer_values)
         ev = inner.evaluate(coefs, jacobian=jacobian)
         if inner.discretization_changed:
             inner.discretization_changed = False
@@ -116,24 +130,27 @@ class TimeShiftedProblem:
     def _evaluate(self, params, jacobian: bool):
         self.evaluations += 1
         params = np.asarray(params, float)
-        if not self.with_delay:
-            ev = self._run(0.0, params, jacobian)
-            ev.params = params
-            return ev
-        coefs, delay = params[:-1], float(params[-1])
-        ev = self._run(delay, coefs, jacobian)
+        n_coef = len(self.coef_free)
+        coefs, outer = params[:n_coef], params[n_coef:]
+        ev = self._run(outer, coefs, jacobian)
         ev.params = params
-        if jacobian and ev.ok:
-            plus = self._run(delay + DELAY_STEP_S, coefs, False)
-            minus = self._run(delay - DELAY_STEP_S, coefs, False)
-            if plus.ok and minus.ok:
-                column = (plus.residual - minus.residual).ravel() / (2 * DELAY_STEP_S)
-            elif plus.ok or minus.ok:       # one shifted simulation failed (a stiff model): one-sided difference
-                column = ((plus.residual - ev.residual) if plus.ok else (ev.residual - minus.residual)).ravel() \
-                    / DELAY_STEP_S
-            else:
-                column = np.full(ev.residual.size, np.nan)
-            ev.jacobian = np.column_stack([ev.jacobian, column])
+        if jacobian and ev.ok and len(self.outer):
+            columns = []
+            for i, name in enumerate(self.outer):
+                step = OUTER_PARAMETERS[name]
+                up, down = outer.copy(), outer.copy()
+                up[i] += step
+                down[i] -= step
+                plus, minus = self._run(up, coefs, False), self._run(down, coefs, False)
+                if plus.ok and minus.ok:
+                    column = (plus.residual - minus.residual).ravel() / (2 * step)
+                elif plus.ok or minus.ok:       # one changed simulation failed (a stiff model): one-sided difference
+                    column = ((plus.residual - ev.residual) if plus.ok else (ev.residual - minus.residual)).ravel() \
+                        / step
+                else:
+                    column = np.full(ev.residual.size, np.nan)
+                columns.append(column)
+            ev.jacobian = np.column_stack([ev.jacobian] + columns)
         return ev
 
 
@@ -165,7 +182,7 @@ class State:
     upper: np.ndarray
     effects: list = field(default_factory=list)      # accepted Effect objects
 
-    def problem(self, base: IdentificationProblem, extra: list[Effect] = ()) -> TimeShiftedProblem:
+    def problem(self, base: IdentificationProblem, extra: list[Effect] = ()) -> 'OuterParameterProblem':
         model, free = self.model, list(self.free)
         lower, upper, params = list(self.lower), list(self.upper), list(self.params)
         for e in extra:
@@ -174,12 +191,13 @@ class State:
             lower += list(e.lower)
             upper += list(e.upper)
             params += list(e.null)
-        # the time offset, when present, goes last
-        if DELAY_PARAMETER in free:
-            i = free.index(DELAY_PARAMETER)
-            for seq in (free, lower, upper, params):
-                seq.append(seq.pop(i))
-        problem = TimeShiftedProblem(model, base.data, free, lower, upper, base.feedback, base.substeps,
+        # the outer parameters, when present, go last (in OUTER_PARAMETERS order)
+        for name in OUTER_PARAMETERS:
+            if name in free:
+                i = free.index(name)
+                for seq in (free, lower, upper, params):
+                    seq.append(seq.pop(i))
+        problem = OuterParameterProblem(model, base.data, free, lower, upper, base.feedback, base.substeps,
                                      base.cost.kind, base.torque_hold)
         problem.start = np.array(params, float)
         return problem

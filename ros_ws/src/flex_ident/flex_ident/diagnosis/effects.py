@@ -15,15 +15,24 @@ Each candidate is what a robotics engineer checks first when a model does not fi
 | time_offset     | measurement delay (torque vs. encoders) | delay_s [s]: efforts used as tau_meas(t + delay_s)       |
 | loop_rest_angle | rest-angle offset of the object         | rest_<theta|phi>_<left|right> [rad]: the loop springs'   |
 |                 |                                         | rest angle, per branch and bending direction (Spring)    |
+| loop_mass       | loop mass error                         | dm_loop: every loop link's mass and inertia x (1 + dm)   |
+| payload         | payload at the gripper                  | payload_kg [kg]: a point mass at the grasp frame 'ee'    |
 
 A per-joint friction *replaces* its shared variant when both are considered: the closed loop tests the per-joint
 values against the shared one (one value against seven, BIC), so the statistics decide between them.
 
 Every coefficient has a *null value* (0, or 1 for the gain) at which the model is the declared one, so the score at
 the null is the first-order evidence for the effect. ``time_offset`` is no model term: it shifts the measured
-torques in time (see :class:`~.closed_loop.TimeShiftedProblem`); a positive offset means the torque sensors lag the
+torques in time (see :class:`~.closed_loop.OuterParameterProblem`); a positive offset means the torque sensors lag the
 encoders, a negative one that the encoders lag the torque sensors (the two are indistinguishable up to a shift of
 the whole recording, which starts at rest).
+
+``loop_mass`` and ``payload`` are no model terms either: the bodies' masses are constants of the compiled kernel, so
+these *outer parameters* rebuild the model (:func:`apply_outer_parameters`) and their Jacobian columns are central
+differences through the whole pipeline, like the time offset's (the model is linear in the masses, so the
+difference is accurate; checked against a step ten times finer in the tests). With k_theta and k_phi free, the loop's
+mass only shows through the loop's load on the arm: scaling the loop's mass and its stiffnesses together leaves its
+shape and motion unchanged for a given arm motion, the torques the arm needs do not.
 """
 from __future__ import annotations
 
@@ -33,17 +42,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanics.model import Coefficient, ConstantForce, CoulombFriction, Spring, ViscousDamping
+from ..mechanics.rigid_body import combine_inertias
 
 #: smoothing velocity of the Coulomb friction model [rad/s]
 COULOMB_VELOCITY_SCALE = 0.02
 DELAY_PARAMETER = 'delay_s'
+LOOP_MASS_PARAMETER = 'dm_loop'
+PAYLOAD_PARAMETER = 'payload_kg'
+#: parameters that are not model coefficients, in the order they come last in a free-parameter list, with the step of
+#: their central-difference Jacobian column (delay [s], relative loop mass [-], payload [kg])
+OUTER_PARAMETERS = {LOOP_MASS_PARAMETER: 0.01, PAYLOAD_PARAMETER: 0.01, DELAY_PARAMETER: 0.002}
 
 
 @dataclass(frozen=True)
 class Effect:
     key: str
     name: str                   # words a robotics engineer understands
-    coefficients: tuple         # coefficient names (model coefficients; DELAY_PARAMETER for the time offset)
+    coefficients: tuple         # coefficient names (model coefficients, or one of OUTER_PARAMETERS)
     null: tuple                 # value of each coefficient at which the effect is absent
     lower: tuple
     upper: tuple
@@ -84,6 +99,11 @@ def candidate_effects(model) -> list[Effect]:
     out.append(Effect('torque_gain', 'torque sensor gain', ('torque_input_scale',), (1.0,), (0.2,), (5.0,), False))
     out.append(Effect('time_offset', 'measurement delay between torque sensors and joint encoders',
                       (DELAY_PARAMETER,), (0.0,), (-0.1,), (0.1,), False))
+    if len(loop_coords(model)):
+        out.append(Effect('loop_mass', 'loop mass error (the object is heavier or lighter than declared)',
+                          (LOOP_MASS_PARAMETER,), (0.0,), (-0.8,), (4.0,), False))
+    out.append(Effect('payload', 'payload at the gripper (an undeclared mass at the grasp frame)', (PAYLOAD_PARAMETER,),
+                      (0.0,), (0.0,), (20.0,), True))
     groups = rest_angle_groups(model)
     if groups:
         out.append(Effect('loop_rest_angle', 'rest-angle offset of the object (its unloaded shape is not the declared '
@@ -110,8 +130,8 @@ def with_effect(model, effect: Effect):
     """A copy of ``model`` with the effect's coefficients (at their null values) and terms."""
     n0 = len(model.coefficients)
     arm = [int(i) for i in model.measured_coords]
-    if effect.key == 'time_offset':
-        return model
+    if effect.key in ('time_offset', 'loop_mass', 'payload'):
+        return model            # outer parameters (apply_outer_parameters), no model term
     if effect.key == 'loop_damping':
         coefs = [Coefficient('c_loop', 0.0, 'viscous damping of every loop joint', 'N m s/rad')]
         terms = [ViscousDamping(int(i), n0) for i in loop_coords(model)]
@@ -161,6 +181,33 @@ def with_effect(model, effect: Effect):
     return out
 
 
+def apply_outer_parameters(model, values: dict):
+    """``model`` with the outer parameters' mass changes (a copy when any is non-zero; time shifts act on the data):
+    every loop link's mass and inertia x (1 + dm_loop) (same centres of mass), and a point mass payload_kg at the grasp
+    frame 'ee' combined into the body of its coordinate. A small negative payload (a finite-difference step at the
+    null value) stays a valid model: the link keeps a positive mass."""
+    dm = float(values.get(LOOP_MASS_PARAMETER, 0.0))
+    payload = float(values.get(PAYLOAD_PARAMETER, 0.0))
+    if dm == 0.0 and payload == 0.0:
+        return model
+    out = copy.copy(model)
+    out.body_mass, out.body_com, out.body_inertia = (model.body_mass.copy(), model.body_com.copy(),
+                                                     model.body_inertia.copy())
+    out._kernel = None
+    if dm != 0.0:
+        loop = loop_coords(model)
+        out.body_mass[loop] *= 1.0 + dm
+        out.body_inertia[loop] *= 1.0 + dm
+    if payload != 0.0:
+        coord, offset = model.frames['ee']
+        m, c, i = combine_inertias([(out.body_mass[coord], out.body_com[coord], out.body_inertia[coord]),
+                                    (payload, offset[:3, 3], np.zeros((3, 3)))])
+        if m <= 0.0:
+            raise ValueError(f'a payload of {payload:g} kg leaves no mass on the grasping link')
+        out.body_mass[coord], out.body_com[coord], out.body_inertia[coord] = m, c, i
+    return out
+
+
 def reported_parameters(effect: Effect, values) -> dict:
     """The effect's parameters in the units an engineer reads (bias as the sensor's offset, gain as the sensor's)."""
     values = [float(v) for v in values]
@@ -169,6 +216,8 @@ def reported_parameters(effect: Effect, values) -> dict:
         return {name: -v for name, v in zip(effect.coefficients, values)}
     if effect.key == 'torque_gain':
         return {'torque_sensor_gain': 1.0 / values[0]}
+    if effect.key == 'loop_mass':
+        return {LOOP_MASS_PARAMETER: values[0], 'loop_mass_scale': 1.0 + values[0]}
     return dict(zip(effect.coefficients, values))
 
 
@@ -178,4 +227,7 @@ def describe(effect: Effect, values) -> str:
         d = p[DELAY_PARAMETER]
         return (f'torque sensors lag the joint encoders by {1e3 * d:.1f} ms' if d >= 0
                 else f'joint encoders lag the torque sensors by {-1e3 * d:.1f} ms')
+    if effect.key == 'loop_mass':
+        d = p[LOOP_MASS_PARAMETER]
+        return f'the loop is {100 * abs(d):.1f} % {"heavier" if d >= 0 else "lighter"} than declared ({LOOP_MASS_PARAMETER} = {d:.4g})'
     return ', '.join(f'{k} = {v:.4g}' for k, v in p.items())
