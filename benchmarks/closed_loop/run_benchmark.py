@@ -1,6 +1,6 @@
 """Closed-loop benchmark: MuJoCo recordings (6-link loop, 10 s, contract noise) with one undeclared effect each,
-several at once (per-joint dry friction of different sizes, torque biases on some joints, loop damping, a delay) or
-none, plus the shipped clean examples -> the default identify (closed loop on) -> table of k errors, effects named,
+several at once (per-joint dry friction of different sizes, torque biases on some joints, loop damping, a delay, a
+loop mass error, a payload at the gripper) or none, plus the shipped clean examples -> the default identify (closed loop on) -> table of k errors, effects named,
 their parameters, the held-out error. A case is right when exactly the expected effects are named and k is within 2 %.
 
     [BENCH_SEED=7] python benchmarks/closed_loop/run_benchmark.py OUT_DIR [CASE ...]
@@ -61,20 +61,60 @@ CASES = {
                                                    ['arm_coulomb_per_joint', 'time_offset', 'loop_damping'],
                                                    {'delay_s': 0.02, 'c_loop': 0.03,
                                                     **{f'f_arm_right_{j}': v for j, v in zip(JOINTS, COULOMB2)}}),
+    # mass errors (no simulator flag: the recording is simulated with a changed experiment, see TRUE_SYSTEM) and one
+    # combined with per-joint friction
+    'loop_mass_1.25': ([], 'loop_mass', {'loop_mass_scale': 1.25}),
+    'loop_mass_0.8': ([], 'loop_mass', {'loop_mass_scale': 0.8}),
+    'payload_0.1kg': ([], 'payload', {'payload_kg': 0.1}),
+    'loop_mass_1.25+perjoint_coulomb': (['--arm-coulomb'] + [str(v) for v in COULOMB],
+                                        ['loop_mass', 'arm_coulomb_per_joint'],
+                                        {'loop_mass_scale': 1.25, **{f'f_arm_right_{j}': v for j, v in
+                                                                     zip(JOINTS, COULOMB)}}),
     'loop12_clean': (LOOP12, None, {}),
     'loop12_loop_damping_0.05': (LOOP12 + ['--loop-damping', '0.05'], 'loop_damping', {'c_loop': 0.05}),
 }
 SHIPPED = {'example_loop6': None, 'example_loop12': None}
+# cases whose true system differs from the declared experiment: the loop's mass x scale, a point mass [kg] at the
+# gripper (the URDF's right_gripper link, the grasp frame); identified with the declared experiment
+TRUE_SYSTEM = {'loop_mass_1.25': {'loop_mass_scale': 1.25}, 'loop_mass_0.8': {'loop_mass_scale': 0.8},
+               'payload_0.1kg': {'payload_kg': 0.1}, 'loop_mass_1.25+perjoint_coulomb': {'loop_mass_scale': 1.25}}
 
 
 def experiment_of(name: str) -> Path:
     return EXP12 if name.startswith('loop12') else EXP6
 
 
+def true_experiment(out: Path, name: str) -> Path:
+    """The experiment the recording is simulated with: the declared one, or a copy with the case's TRUE_SYSTEM."""
+    declared = experiment_of(name)
+    change = TRUE_SYSTEM.get(name)
+    if not change:
+        return declared
+    import yaml
+    spec = yaml.safe_load(declared.read_text())
+    urdf = declared.parent / spec['arm']['urdf']
+    if 'loop_mass_scale' in change:
+        spec['object']['mass'] = float(spec['object']['mass']) * change['loop_mass_scale']
+    if 'payload_kg' in change:
+        text = urdf.read_text()
+        i = text.index('<link name="right_gripper">')
+        j = text.index('<mass value=', i)
+        k = text.index('/>', j)
+        urdf = out / 'recordings' / f'{name}.urdf'
+        urdf.parent.mkdir(parents=True, exist_ok=True)
+        urdf.write_text(text[:j] + f'<mass value="{change["payload_kg"]}"' + text[k:])
+    spec['arm']['urdf'] = str(urdf)
+    path = out / 'recordings' / f'{name}.yaml'
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
 def record(out: Path, name: str, args) -> Path:
     bag = out / 'recordings' / name
     if not bag.exists():
-        subprocess.run([sys.executable, '-m', 'robot_bridge.sim.mujoco_loop', '--experiment', str(experiment_of(name)),
+        subprocess.run([sys.executable, '-m', 'robot_bridge.sim.mujoco_loop', '--experiment',
+                        str(true_experiment(out, name)),
                         '--out',
                         str(bag), '--k-theta', '5', '--k-phi', '3', '--duration', '10', '--amplitude-scale', '0.6',
                         '--seed', os.environ.get('BENCH_SEED', '7')] + NOISE + list(args), check=True,

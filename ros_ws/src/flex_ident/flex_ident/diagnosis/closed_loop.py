@@ -19,7 +19,9 @@ After the declared parameters are identified (``identify``), each round
 
    (rho_1: lag-one autocorrelation of the new model's residual, k: the effect's coefficient count). An effect is added
    when dBIC < -BIC_STRONG (strong evidence on Kass and Raftery's scale) *and* it removes at least MIN_RSS_DROP of the
-   residual; rounds stop when no candidate passes. Clean data keeps the declared model.
+   residual; rounds stop when no candidate passes. Clean data keeps the declared model. When several pass, they are
+   compared at one effective sample count; those within BIC_STRONG of the best are indistinguishable, the one with
+   the fewest coefficients (then the first in the candidate list) is added and the evidence names the others.
 
 A per-joint friction whose shared variant is already in the model is fitted as its *replacement* (from the shared
 value, k counting only the extra coefficients), so the statistics decide between shared and per joint.
@@ -317,6 +319,45 @@ def _state_with(base: IdentificationProblem, effects: list[Effect], values: dict
     return state
 
 
+def _at_implausible_bound(fitted, result, effects: list[Effect]) -> list[str]:
+    """The effects' coefficients that the fit left at a bound other than their null value (an 80 % lighter loop, a
+    gain of 5, a 0.1 s delay): such a fit does not estimate the effect, it uses it to absorb something else (e.g.
+    seven torque biases and a loop mass at its bound trading a little model mismatch), so it is not accepted."""
+    out = []
+    lower, upper = fitted.transform.lower, fitted.transform.upper
+    for e in effects:
+        for name, null in zip(e.coefficients, e.null):
+            i = fitted.free.index(name)
+            lo, hi, v = lower[i], upper[i], float(result.params[i])
+            if not (np.isfinite(lo) and np.isfinite(hi)):
+                continue
+            tol = 1e-3 * (hi - lo)
+            if (lo != null and v <= lo + tol) or (hi != null and v >= hi - tol):
+                out.append(name)
+    return out
+
+
+def _choose(passed: list, rss_old: float, state: State, pool: list):
+    """The effect to add among the round's accepted fits (tuples (effect, problem, result, dBIC, N_eff, drop, screen)),
+    and those the data cannot tell from it. The fits are compared at one effective sample count (the smallest of
+    theirs: a BIC comparison needs the same N, and each fit's own N_eff differs by its residual's correlation); those
+    within BIC_STRONG of the best are indistinguishable, and among them the one with the fewest (extra) coefficients,
+    then the first in the candidate list, is chosen (e.g. a loop-mass error and a payload at the gripper both load
+    the arm mostly through gravity; the loop's declared mass comes first)."""
+    n_common = min(p[4] for p in passed)
+
+    def extra(e):
+        shared = _replaces(state, e)
+        return e.size - (shared.size if shared else 0)
+
+    common = [delta_bic(rss_old, p[2].evaluation.cost, extra(p[0]), n_common) for p in passed]
+    lowest = min(common)
+    alike = [p for p, d in zip(passed, common) if d <= lowest + BIC_STRONG]
+    order = [c.key for c in pool]
+    best = min(alike, key=lambda p: (extra(p[0]), order.index(p[0].key) if p[0].key in order else len(order)))
+    return best, [p for p in alike if p is not best]
+
+
 def _accept(dbic: float, drop: float) -> bool:
     return dbic < -BIC_STRONG and drop >= MIN_RSS_DROP
 
@@ -371,7 +412,7 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
                               'predicted_dbic': round(s['predicted_dbic'], 1)} for s in screen],
                'fits': []}
         rounds.append(log)
-        best = None
+        passed = []
         for s in screen[:FIT_CANDIDATES]:
             if s['predicted_rss_drop'] < SCREEN_MIN_DROP:
                 continue
@@ -384,17 +425,26 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
             shared = _replaces(state, e)
             dbic = delta_bic(current.cost, ev.cost, e.size - (shared.size if shared else 0), n_eff)
             drop = 1.0 - ev.cost / current.cost if current.cost > 0 else 0.0
+            at_bound = _at_implausible_bound(fitted, result, state.effects + [e])
             log['fits'].append({'effect': e.key, 'rss_drop': round(drop, 4), 'dbic': round(dbic, 1),
                                 'n_eff': round(n_eff, 1), 'iterations': int(result.iterations),
                                 'parameters': dict(zip(fitted.free, (float(v) for v in result.params)))})
-            if _accept(dbic, drop) and (best is None or dbic < best[3]):
-                best = (e, fitted, result, dbic, n_eff, drop, s)
-        if best is None:
+            if at_bound:
+                log['fits'][-1]['rejected'] = f'{", ".join(at_bound)} at the end of the plausible range'
+            elif _accept(dbic, drop):
+                passed.append((e, fitted, result, dbic, n_eff, drop, s))
+        if not passed:
             log['decision'] = 'no candidate passes (dBIC < -%g and residual drop >= %g)' % (BIC_STRONG, MIN_RSS_DROP)
             break
+        best, alike = _choose(passed, current.cost, state, pool)
         e, fitted, result, dbic, n_eff, drop, s = best
         how = (f'the score test ranked it {screen.index(s) + 1} of {len(screen)} candidates (predicted '
                f'{100 * s["predicted_rss_drop"]:.1f} % drop)')
+        if alike:
+            log['indistinguishable'] = [a[0].key for a in alike]
+            how += ('; the data hardly tell it from ' + ', '.join(f'{a[0].key} ({100 * a[5]:.1f} % lower)' for a in alike)
+                    + f' (BIC within {BIC_STRONG:g} at a common effective sample count), and it has the fewest '
+                    'coefficients or comes first in the candidate list among them')
         shared = _replaces(state, e)
         values = dict(zip(fitted.free, (float(v) for v in result.params)))
         if shared is None:
