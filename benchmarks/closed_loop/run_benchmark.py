@@ -100,7 +100,7 @@ def true_experiment(out: Path, name: str) -> Path:
         i = text.index('<link name="right_gripper">')
         j = text.index('<mass value=', i)
         k = text.index('/>', j)
-        urdf = out / 'recordings' / f'{name}.urdf'
+        urdf = (out / 'recordings' / f'{name}.urdf').resolve()
         urdf.parent.mkdir(parents=True, exist_ok=True)
         urdf.write_text(text[:j] + f'<mass value="{change["payload_kg"]}"' + text[k:])
     spec['arm']['urdf'] = str(urdf)

@@ -327,6 +327,8 @@ def _at_implausible_bound(fitted, result, effects: list[Effect]) -> list[str]:
     lower, upper = fitted.transform.lower, fitted.transform.upper
     for e in effects:
         for name, null in zip(e.coefficients, e.null):
+            if name not in fitted.free:         # a shared friction this fit replaces
+                continue
             i = fitted.free.index(name)
             lo, hi, v = lower[i], upper[i], float(result.params[i])
             if not (np.isfinite(lo) and np.isfinite(hi)):
