@@ -94,16 +94,18 @@ def candidate_effects(model) -> list[Effect]:
     out.append(Effect('arm_coulomb', 'arm joint Coulomb friction', ('f_arm',), (0.0,), (0.0,), (100.0,), True))
     out.append(Effect('arm_coulomb_per_joint', 'arm joint Coulomb friction, per joint',
                       tuple(f'f_arm_{j}' for j in joints), (0.0,) * n, (0.0,) * n, (100.0,) * n, True, 'arm_coulomb'))
-    out.append(Effect('torque_bias', 'torque sensor bias (per joint)', tuple(f'b_{j}' for j in joints),
-                      (0.0,) * len(joints), (-np.inf,) * len(joints), (np.inf,) * len(joints), False))
-    out.append(Effect('torque_gain', 'torque sensor gain', ('torque_input_scale',), (1.0,), (0.2,), (5.0,), False))
-    out.append(Effect('time_offset', 'measurement delay between torque sensors and joint encoders',
-                      (DELAY_PARAMETER,), (0.0,), (-0.1,), (0.1,), False))
+    # the object's declared mass and a payload come before the sensor's bias and gain: when the data cannot tell
+    # them apart (they all load the arm mostly through gravity), the closed loop adds the first (closed_loop._choose)
     if len(loop_coords(model)):
         out.append(Effect('loop_mass', 'loop mass error (the object is heavier or lighter than declared)',
                           (LOOP_MASS_PARAMETER,), (0.0,), (-0.8,), (4.0,), False))
     out.append(Effect('payload', 'payload at the gripper (an undeclared mass at the grasp frame)', (PAYLOAD_PARAMETER,),
                       (0.0,), (0.0,), (20.0,), True))
+    out.append(Effect('torque_bias', 'torque sensor bias (per joint)', tuple(f'b_{j}' for j in joints),
+                      (0.0,) * len(joints), (-np.inf,) * len(joints), (np.inf,) * len(joints), False))
+    out.append(Effect('torque_gain', 'torque sensor gain', ('torque_input_scale',), (1.0,), (0.2,), (5.0,), False))
+    out.append(Effect('time_offset', 'measurement delay between torque sensors and joint encoders',
+                      (DELAY_PARAMETER,), (0.0,), (-0.1,), (0.1,), False))
     groups = rest_angle_groups(model)
     if groups:
         out.append(Effect('loop_rest_angle', 'rest-angle offset of the object (its unloaded shape is not the declared '
