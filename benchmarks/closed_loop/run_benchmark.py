@@ -1,7 +1,7 @@
 """Closed-loop benchmark: MuJoCo recordings (6-link loop, 10 s, contract noise) with one undeclared effect each,
 several at once (per-joint dry friction of different sizes, torque biases on some joints, loop damping, a delay, a
-loop mass error, a payload at the gripper) or none, plus the shipped clean examples -> the default identify (closed loop on) -> table of k errors, effects named,
-their parameters, the held-out error. A case is right when exactly the expected effects are named and k is within 2 %.
+loop mass error, a payload at the gripper) or none, plus the shipped clean examples -> the default identify (closed
+loop on) -> table of k errors, effects named, their parameters, the held-out error. A case is right when exactly the expected effects are named and k is within 2 %.
 
     [BENCH_SEED=7] python benchmarks/closed_loop/run_benchmark.py OUT_DIR [CASE ...]
 

@@ -52,7 +52,6 @@ from .effects import (DELAY_PARAMETER, OUTER_PARAMETERS, Effect, apply_outer_par
 
 BIC_STRONG = 10.0
 MIN_RSS_DROP = 0.02
-DELAY_STEP_S = 0.002
 MAX_ROUNDS = 4
 DIAGNOSIS_COST = None            # None: the identification's own cost (end_effector by default)
 FIT_CANDIDATES = 4          # at most this many candidates fitted per round (best predicted first) ...
@@ -200,7 +199,7 @@ class State:
                 for seq in (free, lower, upper, params):
                     seq.append(seq.pop(i))
         problem = OuterParameterProblem(model, base.data, free, lower, upper, base.feedback, base.substeps,
-                                     base.cost.kind, base.torque_hold)
+                                        base.cost.kind, base.torque_hold)
         problem.start = np.array(params, float)
         return problem
 
@@ -444,7 +443,8 @@ def diagnose(problem: IdentificationProblem, params, progress=None, candidates: 
                f'{100 * s["predicted_rss_drop"]:.1f} % drop)')
         if alike:
             log['indistinguishable'] = [a[0].key for a in alike]
-            how += ('; the data hardly tell it from ' + ', '.join(f'{a[0].key} ({100 * a[5]:.1f} % lower)' for a in alike)
+            others = ', '.join(f'{a[0].key} ({100 * a[5]:.1f} % lower)' for a in alike)
+            how += (f'; the data hardly tell it from {others}'
                     + f' (BIC within {BIC_STRONG:g} at a common effective sample count), and it has the fewest '
                     'coefficients or comes first in the candidate list among them')
         shared = _replaces(state, e)

@@ -231,5 +231,6 @@ def describe(effect: Effect, values) -> str:
                 else f'joint encoders lag the torque sensors by {-1e3 * d:.1f} ms')
     if effect.key == 'loop_mass':
         d = p[LOOP_MASS_PARAMETER]
-        return f'the loop is {100 * abs(d):.1f} % {"heavier" if d >= 0 else "lighter"} than declared ({LOOP_MASS_PARAMETER} = {d:.4g})'
+        return (f'the loop is {100 * abs(d):.1f} % {"heavier" if d >= 0 else "lighter"} than declared '
+                f'({LOOP_MASS_PARAMETER} = {d:.4g})')
     return ', '.join(f'{k} = {v:.4g}' for k, v in p.items())
