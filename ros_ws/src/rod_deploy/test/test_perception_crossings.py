@@ -122,3 +122,98 @@ def test_deployed_order_starts_at_the_named_end():
     closed = np.vstack([ring, ring[:1]])
     out = deployed_order(closed, True, (0.0, -1.1))
     assert np.allclose(out[0], [0, -1], atol=1e-9) and np.allclose(out[0], out[-1]) and len(out) == 9
+
+
+def _shallow_x(angle_deg, widths=(11.0, 8.0), colours=((60, 60, 200), (70, 70, 210)), texture=0.0):
+    """Two straight rods crossing at ``angle_deg`` in the middle of a 300 x 400 image (a near copy of
+    one colour: colour cannot pair the branches)."""
+    t = np.linspace(-170, 170, 341)[:, None]
+    half = np.radians(angle_deg) / 2
+    centre = np.array([150.0, 200.0])
+    curves = [centre + t * np.array([np.sin(s * half), np.cos(s * half)]) for s in (1, -1)]
+    cs = curve_crossings(curves)
+    img = render_rod_scene((300, 400), curves, list(widths), list(colours), cs, texture=texture, seed=1)
+    return curves, img
+
+
+@pytest.mark.parametrize('angle_deg', [14.0])
+def test_shallow_crossing_is_one_crossing_of_two_ys(angle_deg):
+    """A shallow X leaves two Y junctions joined by a shared chain about w / tan(angle / 2) long (longer
+    than the 8 w of the odd-cluster rule at these angles): they form one crossing of four branches,
+    paired straight through, and both rods come back whole within 1 px."""
+    from rod_deploy.perception import bending_energy_pairing as bep
+    found = []
+    original = bep.find_crossings
+
+    def spy(*args, **kwargs):
+        found.extend(original(*args, **kwargs))
+        return found
+    curves, img = _shallow_x(angle_deg)
+    import rod_deploy.perception.pipeline as pipeline
+    pipeline_find, pipeline.find_crossings = pipeline.find_crossings, spy
+    try:
+        res = _read_in_order(curves, img)
+    finally:
+        pipeline.find_crossings = pipeline_find
+    shallow = [c for c in found if c.overlap_px > 0]
+    assert len(shallow) == 1 and len(shallow[0].branches) == 4
+    w = np.mean([o.width_px for o in res.objects])
+    expected = w / np.tan(np.radians(angle_deg) / 2)
+    assert 0.5 * expected <= shallow[0].overlap_px <= 1.5 * expected
+
+
+def test_an_eye_is_not_a_shallow_crossing():
+    """Two strands that part and meet again (a rod and the shadow beside it, two rods lying side by side)
+    leave two Ys joined by two chains: no shallow crossing."""
+    import cv2
+    from rod_deploy.perception.bending_energy_pairing import find_crossings
+    from rod_deploy.perception.skeleton_graph import build_skeleton_graph, skeleton_of
+    mask = np.zeros((200, 400), np.uint8)
+    cv2.line(mask, (20, 100), (380, 100), 1, 9)
+    cv2.ellipse(mask, (200, 100), (90, 14), 0, 180, 360, 1, 7)        # a strand leaving and rejoining the rod
+    graph = build_skeleton_graph(skeleton_of(mask.astype(bool)))
+    dist = cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+    crossings = find_crossings(graph, 6.0, 64.0, width_at=lambda p: 2.0 * dist[tuple(np.round(p).astype(int).T)],
+                               fit_px=15.0)
+    assert not any(c.overlap_px > 0 for c in crossings)
+
+
+def test_stroke_width_from_the_skeleton_when_texture_specks_bias_the_segmentation():
+    """Specks of a textured table left in the mask pull the segmentation's 2 area / perimeter far below
+    the rod's width; the width on the skeleton's long chains replaces it."""
+    import cv2
+    from rod_deploy.perception.pipeline import _centreline_width
+    from rod_deploy.perception.skeleton_graph import build_skeleton_graph, skeleton_of
+    mask = np.zeros((300, 400), np.uint8)
+    cv2.line(mask, (30, 150), (370, 150), 1, 11)
+    rng = np.random.default_rng(0)
+    for r, c in rng.integers(10, 290, (150, 2)):
+        if abs(r - 150) > 15:
+            cv2.circle(mask, (int(c), int(r)), 2, 1, -1)
+    dist = cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+    graph = build_skeleton_graph(skeleton_of(mask.astype(bool)))
+    n = int(mask.sum())
+    perimeter = n - int(cv2.erode(mask, np.ones((3, 3), np.uint8)).sum())
+    w_seg = 2.0 * n / perimeter
+    assert w_seg < 7.0
+    assert abs(_centreline_width(graph, dist, 1, w_seg, 1.3) - 11.0) <= 1.5
+    assert _centreline_width(graph, dist, 1, 10.5, 1.3) == 10.5          # a fair estimate stays
+
+
+def test_overlay_marks_undecided_crossings():
+    """An undecided crossing gets a white '?' beside it, a decided one does not (it gets a ring)."""
+    from rod_deploy.perception.crossing_order import CrossingDecision
+    from rod_deploy.perception.overlay import draw_overlay
+    from rod_deploy.perception.pipeline import PerceivedObject
+    t = np.linspace(220, 380, 161)          # crossing at (300, 300), far from the legend (top left)
+    objects = [PerceivedObject(np.stack([t, t], axis=1), 8.0, False),
+               PerceivedObject(np.stack([t, 600 - t], axis=1), 8.0, False)]
+    img = np.full((400, 400, 3), 80, np.uint8)
+    label = (slice(300 - 20, 300 - 4), slice(300 + 4, 300 + 16))       # where the '?' goes (up, right)
+
+    def white_in_label(over):
+        d = CrossingDecision(0, np.array([300.0, 300.0]), (0, 1), over, 0.0 if over is None else 1.0, 40.0,
+                             cue=None if over is None else 'colour')
+        ov = draw_overlay(img, objects, [d])
+        return int(np.all(ov[label] >= 250, axis=2).sum())
+    assert white_in_label(None) >= 10 and white_in_label(0) == 0

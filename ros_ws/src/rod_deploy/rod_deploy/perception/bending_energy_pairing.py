@@ -4,7 +4,7 @@ A crossing is a cluster of skeleton junctions: one junction where two strands cr
 three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle, or
 several junctions around the overlap of three strands (see :func:`find_crossings`).
 Each branch leaving the cluster gets an anchor a distance ``skip_px`` out along it (beyond the part of the
-skeleton that the junction bends) and a unit tangent pointing into the crossing. Joining branch i to
+skeleton that the junction bends; at a shallow crossing at least ``SPLAY_FRACTION`` of the overlap) and a unit tangent pointing into the crossing. Joining branch i to
 branch j by the polyline (a_i - t_i, a_i, a_j, a_j - t_j) costs the discrete bending energy of its two
 interior vertices (discrete elastic rods, Bergou et al. 2008):
 
@@ -32,6 +32,8 @@ import numpy as np
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 
 MAX_TURN_RAD = np.pi - 1e-3
+MIN_ARM_FRACTION = 0.25  # a shallow crossing's four arms are at least this fraction of its overlap long
+SPLAY_FRACTION = 0.2      # branch anchors of a shallow crossing at least this fraction of its overlap out
 
 
 @dataclass
@@ -53,6 +55,7 @@ class Crossing:
     branches: list
     centre: np.ndarray                          # (row, col) [px]
     pairs: list = field(default_factory=list)   # (i, j) indices into branches
+    overlap_px: float = 0.0                     # length of the shared chain of a shallow crossing (0: none)
     energy: float = 0.0
 
     def unpaired(self):
@@ -60,7 +63,9 @@ class Crossing:
         return [i for i in range(len(self.branches)) if i not in paired]
 
 
-def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max_branches: int = 8) -> list:
+def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max_branches: int = 8,
+                   width_at=None, fit_px: float = 8.0, max_shallow_deg: float = 40.0,
+                   shallow_slack: float = 2.0) -> list:
     """Group junctions into crossings.
 
     Junctions joined by a chain shorter than ``short_px`` form one cluster. A cluster with an odd number
@@ -69,7 +74,15 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
     shallow X becomes two Ys, three rods crossing near one point become several clusters around it. So
     odd clusters are joined to the nearest other odd cluster reachable along chains of total length below
     ``y_merge_px`` (through even clusters on the way, which join too), closest first, as long as the
-    result has at most ``max_branches`` branches."""
+    result has at most ``max_branches`` branches.
+
+    Before that, with ``width_at(points)`` (the local rod width [px] at skeleton points), a shallow X split
+    into two Ys joined by a longer shared chain is recognised from its geometry: two single three-way
+    junctions joined by one chain of length L, at each of which the two other branches diverge by less than
+    ``max_shallow_deg`` and leave away from the chain, with L within a factor ``shallow_slack`` of
+    w / tan(theta / 2) (w the mean width of the four branches, theta their mean divergence: two strips of
+    width w crossing at theta overlap along about that length). Branch tangents as in
+    :func:`branch_geometry` (``skip_px``, ``fit_px``)."""
     junctions = [nid for nid, n in graph.live_nodes() if n.kind == JUNCTION]
     parent = {nid: nid for nid in junctions}
 
@@ -81,10 +94,13 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
 
     internal = set()
     links = []            # chains between two different junctions, not (yet) internal
+    chains = []           # all chains between two different junctions (candidates for a shallow overlap)
     for eid, e in graph.live_edges():
         if e.closed or e.u == e.v or e.u not in parent or e.v not in parent:
             continue
         length = e.length_px()
+        if length >= short_px:
+            chains.append((length, eid))
         if length < short_px:
             internal.add(eid)
             parent[find(e.u)] = find(e.v)
@@ -95,6 +111,19 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
     for nid in junctions:
         r = find(nid)
         count[r] = count.get(r, 0) + sum(1 for eid, _ in graph.nodes[nid].edges if eid not in internal)
+    overlaps = {}         # shared chains of shallow crossings -> their length
+    if width_at is not None:
+        for length, eid in sorted(_shallow_links(graph, chains, find, count, width_at, fit_px,
+                                                 max_shallow_deg, shallow_slack)):
+            e = graph.edges[eid]
+            a, b = find(e.u), find(e.v)
+            if a == b or count[a] != 3 or count[b] != 3:
+                continue
+            internal.add(eid)
+            overlaps[eid] = length
+            parent[a] = b
+            count[b] = count.pop(a) + 3 - 2
+        links = [(length, eid) for length, eid in links if eid not in internal]
     while True:
         path = _closest_odd_pair(graph, links, find, count, y_merge_px, max_branches)
         if path is None:
@@ -117,9 +146,65 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
         inner = sorted({eid for nid in nodes for eid, _ in graph.nodes[nid].edges if eid in internal})
         branches = [(eid, side) for nid in nodes for eid, side in graph.nodes[nid].edges if eid not in internal]
         centre = np.mean([graph.nodes[nid].position for nid in nodes], axis=0)
-        crossings.append(Crossing(nodes=sorted(node_set), internal_edges=inner,
-                                  branches=branches, centre=centre))
+        crossings.append(Crossing(nodes=sorted(node_set), internal_edges=inner, branches=branches, centre=centre,
+                                  overlap_px=max((overlaps.get(eid, 0.0) for eid in inner), default=0.0)))
     return crossings
+
+
+def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack, min_deg=8.0):
+    """(length, edge id) of the chains that are the shared overlap of a shallow crossing (see
+    :func:`find_crossings`). The branches' directions are taken from the chain's middle (where the rods
+    cross) to a point well out along each branch: next to a Y junction the skeleton splays."""
+    out = []
+    cos_away = math.cos(math.radians(30.0))
+    for length, eid in chains:
+        e = graph.edges[eid]
+        if count.get(find(e.u)) != 3 or count.get(find(e.v)) != 3 or find(e.u) == find(e.v):
+            continue
+        middle = e.points[len(e.points) // 2]
+        thetas, widths, ok = [], [], True
+        for nid, other in ((e.u, e.v), (e.v, e.u)):
+            node = graph.nodes[nid]
+            # single three-way junctions, joined by this chain only (two chains between them: an eye, a rod
+            # and its shadow or two rods side by side, not a crossing)
+            if len(node.edges) != 3 or any(x != eid and {graph.edges[x].u, graph.edges[x].v} & {e.u, e.v} ==
+                                           {e.u, e.v} or graph.edges[x].u == graph.edges[x].v
+                                           for x, _ in node.edges):
+                ok = False
+                break
+            chain = graph.nodes[other].position - node.position
+            chain = chain / max(float(np.linalg.norm(chain)), 1e-9)
+            outward = []
+            for beid, side in node.edges:
+                if beid == eid:
+                    continue
+                pts = graph.branch_points(beid, side)
+                w = float(np.median(width_at(pts[:int(np.ceil(fit_px)) + 1][-max(3, int(fit_px) // 2):])))
+                if len(pts) < MIN_ARM_FRACTION * length:   # a spur or a piece of shadow, not a rod's arm
+                    break
+                far = pts[min(len(pts) - 1, int(0.5 * length + 3.0 * w))]
+                d = far - middle
+                outward.append(d / max(float(np.linalg.norm(d)), 1e-9))
+                widths.append(w)
+            if len(outward) != 2:
+                ok = False
+                break
+            mean_out = outward[0] + outward[1]
+            mean_out = mean_out / max(float(np.linalg.norm(mean_out)), 1e-9)
+            # both branches leave away from the chain (not one of them running back along it: an eye)
+            if float(np.dot(mean_out, chain)) > -cos_away or max(float(np.dot(o, chain)) for o in outward) > -0.7:
+                ok = False
+                break
+            thetas.append(math.acos(max(-1.0, min(1.0, float(np.dot(outward[0], outward[1]))))))
+        if not ok:
+            continue
+        theta = max(0.5 * (thetas[0] + thetas[1]), math.radians(min_deg))
+        if max(thetas) > math.radians(max_deg):
+            continue
+        expected = float(np.mean(widths)) / math.tan(0.5 * theta)
+        if expected / slack <= length <= slack * expected:
+            out.append((length, eid))
+    return out
 
 
 def _closest_odd_pair(graph, links, find, count, max_px, max_branches):
@@ -205,9 +290,11 @@ def attach_branch_geometry(graph: SkeletonGraph, crossings: list, skip_px: float
     branches, stretches = [], []
     for crossing in crossings:
         out = []
+        # past the Ys of a long overlap (a shallow crossing) the skeleton splays over a longer stretch
+        skip = max(skip_px, SPLAY_FRACTION * crossing.overlap_px)
         for eid, side in crossing.branches:
             pts = graph.branch_points(eid, side)
-            i0, t = branch_geometry(pts, skip_px, fit_px)
+            i0, t = branch_geometry(pts, skip, fit_px)
             stretch = pts[i0:i0 + int(np.ceil(fit_px)) + 1]
             stretches.append(stretch if len(stretch) >= 3 else stretch[:0])
             out.append(Branch(eid, side, pts[i0].copy(), i0, t))

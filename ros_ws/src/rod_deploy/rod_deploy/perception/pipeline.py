@@ -1,7 +1,9 @@
 """Pattern and rod perception, image to ordered centrelines: the steps of mBEST (Choi et al. 2023) plus
 sub-pixel refinement.
 
- 1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w;
+ 1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w (replaced by
+    the mask's width on the skeleton's long chains when that is ``width_mismatch`` times larger: specks of
+    a textured table bias the segmentation's 2 area / perimeter low);
  2. skeleton (``skimage.morphology.skeletonize``; of the mask at half resolution when strokes are at
     least ``half_resolution_min_width_px`` wide) and its graph (:mod:`.skeleton_graph`); spurs shorter than
     ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
@@ -11,7 +13,9 @@ sub-pixel refinement.
  3. crossings (:mod:`.bending_energy_pairing`): junctions closer than ``merge_factor`` w form one
     cluster, and clusters with an odd number of branches are joined to the nearest other odd one within
     ``y_merge_factor`` w along the skeleton (a shallow X split into two Ys, three rods crossing near one
-    point); branches paired by minimal bending energy (anchors ``skip_factor`` w + 2 px out, tangents over
+    point), and, from their geometry, two Ys joined by a longer shared chain of about w / tan(angle / 2)
+    (a shallow crossing, :func:`~.bending_energy_pairing.find_crossings`);
+    branches paired by minimal bending energy (anchors ``skip_factor`` w + 2 px out, tangents over
     1.5 w), with a penalty for joining branches of clearly different colour (``min_colour_separation``);
  4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths); an
     object whose colour changes for good along its length is cut there (rods of different colours
@@ -60,13 +64,14 @@ class PerceptionConfig:
     min_length_factor: float = 4.0       # objects shorter than this many widths are dropped
     merge_factor: float = 0.75           # junctions joined by chains shorter than this * w: one crossing
     y_merge_factor: float = 8.0          # odd junction clusters joined along chains shorter than this * w
-    skip_factor: float = 0.75            # branch anchors this many widths (+ 2 px) out of the crossing
+    skip_factor: float = 0.5             # branch anchors this many widths (+ 2 px) out of the crossing
     max_gap_factor: float = 3.0          # facing ends at most this many widths apart are joined (0: never)
     max_hidden_factor: float = 20.0      # ... up to this many if hidden under other rods (0: never)
     refine: bool = True                  # edge-centred sub-pixel refinement
     min_colour_separation: float = 12.0  # CIELAB a*b* difference needed to decide over/under
     max_pixels: int = 12_000_000         # larger images are processed downscaled
     half_resolution_min_width_px: float = 9.0   # skeleton at half resolution for strokes this wide
+    width_mismatch: float = 1.3          # the skeleton's width replaces w when this many times larger
 
     def __post_init__(self):
         if not self.step_px > 0:
@@ -136,8 +141,10 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         h2, w2 = mask.shape[0] // 2, mask.shape[1] // 2
         mask = cv2.resize(mask[:2 * h2, :2 * w2].view(np.uint8) * np.uint8(255), (w2, h2),
                           interpolation=cv2.INTER_AREA) >= 128
-    ws = w / f
     graph = build_skeleton_graph(skeleton_of(mask))
+    skel_dist = cv2.distanceTransform(mask.view(np.uint8), cv2.DIST_L2, 3)
+    w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
+    ws = w / f
     t2 = time.perf_counter()
     timings['skeleton'] = (t2 - t1) * 1e3
 
@@ -156,7 +163,9 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     prune_spurs(graph, config.spur_factor * ws + 2.0)
     dissolve_pass_through_junctions(graph)
     remove_small_parts(graph, min_length / f)
-    crossings = find_crossings(graph, config.merge_factor * ws, config.y_merge_factor * ws)
+    crossings = find_crossings(graph, config.merge_factor * ws, config.y_merge_factor * ws,
+                               width_at=lambda p: 2.0 * _lookup(skel_dist, p),
+                               fit_px=1.5 * ws + 2.0)
     pair_crossings(graph, crossings, config.skip_factor * ws + 2.0, 1.5 * ws + 2.0, colour_of,
                    config.min_colour_separation)
     traced = trace_objects(graph, crossings)
@@ -209,6 +218,17 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         d.position = d.position / scale
     timings['total'] = (time.perf_counter() - t0) * 1e3
     return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
+
+
+def _centreline_width(graph, dist, f, w, mismatch):
+    """The stroke width: the segmentation's 2 area / perimeter ``w``, unless the skeleton's chains longer
+    than 6 w, pooled, sit in a mask more than ``mismatch`` times wider (median of 2 d - 1 on them, d the distance to the
+    background, at processing scale ``f``): specks of a textured table left in the mask bias 2 A / P low."""
+    points = [e.points for _, e in graph.live_edges() if e.length_px() >= 6.0 * w / f]   # not specks
+    if not points:
+        return w
+    w_centre = f * (2.0 * float(np.median(_lookup(dist, np.vstack(points)))) - 1.0)
+    return w_centre if w_centre > mismatch * w else w
 
 
 def _lookup(image, points):
