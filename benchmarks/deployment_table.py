@@ -132,8 +132,8 @@ def main():
     lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
              'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
-             f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
-             'pattern length. Self-contact ignored.', '',
+             f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed '
+             'curve cut at the pattern length; coverage = deployed / pattern length. Self-contact ignored.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:

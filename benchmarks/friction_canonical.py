@@ -19,19 +19,22 @@ c = 2/s in both (as in the deployment replays).
     (any growth is creep). Reported: the end's displacement at 1, 3, 10 s and the relaxed length at 10 s (from the
     end to where the curvature first reaches 90 % of kappa).
 
-Set-ups compared: PyElastica as ``pyelastica_replay.py`` uses it (1 cm elements, rotary inertia x100, dt 3e-4 s,
-slip tolerance 1e-4 m/s) and variants (rotary inertia x1 with dt 1e-4 s; slip tolerance 1e-6 m/s); our DER (5 mm
-edges, implicit Euler dt 0.02 s) with its friction regularisation velocity 1e-4 m/s (the deployments') and smaller.
+Set-ups compared: PyElastica as ``pyelastica_replay.py`` used it before (its own friction law
+``RodPlaneContactWithAnisotropicFriction``: 1 cm elements, rotary inertia x100, dt 3e-4 s, slip tolerance 1e-4 m/s)
+and variants (rotary inertia x1 with dt 1e-4 s; slip tolerance 1e-6 m/s); PyElastica with Coulomb friction on the
+centreline (``CentrelineCoulombPlane``, the replay's default now), also with 5 mm elements and with damping 20/s (a
+diagnostic: the release transient damped); our DER (5 mm edges, implicit Euler dt 0.02 s) with its friction
+regularisation velocity 1e-4 m/s (the deployments') and smaller, and with dt 0.002 s.
 """
 from __future__ import annotations
 
 import argparse
 import math
-import platform
 import os
+import platform
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +62,8 @@ class ElasticaCase:
     slip_tol: float = 1e-4
     element_m: float = 0.01
     friction_law: str = 'pyelastica'    # or 'centreline' (CentrelineCoulombPlane: no rolling)
+    damping_per_s: float = DAMPING
+    only_a: bool = False                # a diagnostic of case (a) only
 
 
 @dataclass(frozen=True)
@@ -75,7 +80,11 @@ ELASTICA_CASES = [ElasticaCase('PyElastica as in the replay (rotary x100, dt 3e-
                   ElasticaCase('PyElastica, centreline Coulomb (no rolling; rotary x100, slip tol 1e-4)',
                                friction_law='centreline'),
                   ElasticaCase('PyElastica, centreline Coulomb, slip tol 1e-5', friction_law='centreline',
-                               slip_tol=1e-5)]
+                               slip_tol=1e-5),
+                  ElasticaCase('PyElastica, centreline Coulomb, 5 mm elements (dt 1.5e-4)', friction_law='centreline',
+                               element_m=0.005, dt_s=1.5e-4, only_a=True),
+                  ElasticaCase('PyElastica, centreline Coulomb, damping 20/s (the release transient damped)',
+                               friction_law='centreline', damping_per_s=20.0, only_a=True)]
 DER_CASES = [DerCase('our DER, friction regularisation 1e-4 m/s (deployments)'),
              DerCase('our DER, regularisation 1e-5 m/s', friction_velocity=1e-5),
              DerCase('our DER, regularisation 1e-6 m/s', friction_velocity=1e-6),
@@ -110,7 +119,10 @@ class _Probe(ea.CallBackBaseClass):
 
     def make_callback(self, system, time, current_step):
         if self.times and time >= self.times[0] - 1e-9:
-            self.store.append((self.times.pop(0), system.position_collection.copy()))
+            d1, d3 = system.director_collection[0].T, system.director_collection[2].T
+            lateral = np.cross(d3, [0.0, 0.0, 1.0])
+            roll = np.degrees(np.arctan2(np.sum(d1 * lateral, axis=1), d1[:, 2]))   # 0: d1 still vertical
+            self.store.append((self.times.pop(0), system.position_collection.copy(), float(np.median(roll))))
 
 
 def elastica_run(case: ElasticaCase, nodes0, t_end, body_acc=(0, 0, 0), t_on=0.0, probe_times=()):
@@ -145,7 +157,8 @@ def elastica_run(case: ElasticaCase, nodes0, t_end, body_acc=(0, 0, 0), t_on=0.0
         sim.detect_contact_between(rod_e, plane).using(
             ea.RodPlaneContactWithAnisotropicFriction, k=200.0, nu=0.1, slip_velocity_tol=case.slip_tol,
             static_mu_array=mu, kinetic_mu_array=mu)
-    sim.dampen(rod_e).using(ea.AnalyticalLinearDamper, uniform_damping_constant=DAMPING, time_step=case.dt_s)
+    sim.dampen(rod_e).using(ea.AnalyticalLinearDamper, uniform_damping_constant=case.damping_per_s,
+                            time_step=case.dt_s)
     store = []
     sim.collect_diagnostics(rod_e).using(_Probe, times=probe_times, store=store)
     sim.finalize()
@@ -155,7 +168,7 @@ def elastica_run(case: ElasticaCase, nodes0, t_end, body_acc=(0, 0, 0), t_on=0.0
         now = stepper.step(sim, now, case.dt_s)
     if not np.all(np.isfinite(rod_e.position_collection)):
         raise RuntimeError(f'{case.name}: diverged')
-    return [(tt, p.T) for tt, p in store]
+    return [(tt, p.T, roll) for tt, p, roll in store]
 
 
 # ------------------------------------------------------------------------------------------------ our DER
@@ -178,7 +191,7 @@ def der_run(case: DerCase, nodes0, t_end, body_acc=(0, 0, 0), t_on=0.0, probe_ti
             on = True
         model.step(case.dt_s)
         if times and now >= times[0] - 1e-9:
-            out.append((times.pop(0), model.nodes.copy()))
+            out.append((times.pop(0), model.nodes.copy(), float('nan')))
     return out
 
 
@@ -215,7 +228,7 @@ def case_b(runner, case, dl):
             nodes0 = straight_nodes(0.2, dl, h)
             acc = ratio * MU * G * vec
             res = runner(case, nodes0, SETTLE_S + t_load, acc, SETTLE_S, probe_times=(SETTLE_S, SETTLE_S + t_load))
-            (_, p_on), (_, p_end) = res
+            (_, p_on, _), (_, p_end, _) = res
             moved = float(np.mean((p_end - p_on) @ vec))
             rows.append((direction, ratio, moved, sliding_closed_form(ratio, t_load)))
     return rows
@@ -239,8 +252,9 @@ def case_a(runner, case, dl, kappa=10.0, length=0.3):
     nodes0 = arc_nodes(length, dl, kappa, h)
     probes = (1.0, 3.0, 10.0)
     res = runner(case, nodes0, probes[-1], probe_times=probes)
-    moved = [float(np.linalg.norm(p[0, :2] - nodes0[0, :2])) for _, p in res]
-    return moved, relaxed_length(res[-1][1], kappa)
+    moved = [float(np.linalg.norm(p[0, :2] - nodes0[0, :2])) for _, p, _ in res]
+    centre = float(np.linalg.norm(res[-1][1][len(nodes0) // 2, :2] - nodes0[len(nodes0) // 2, :2]))
+    return moved, relaxed_length(res[-1][1], kappa), centre, res[-1][2]
 
 
 def l_star(kappa):
@@ -259,7 +273,7 @@ def main():
     b_rows, a_rows = [], []
     for case, runner, dl in runs:
         t0 = time.perf_counter()
-        if args.only != 'a':
+        if args.only != 'a' and not getattr(case, 'only_a', False):
             try:
                 rows = case_b(runner, case, dl)
             except RuntimeError as exc:          # an explicit step beyond its stability bound: said in the table
@@ -270,10 +284,11 @@ def main():
                 print(f'(b) {case.name}: {row[0]} F/muN {row[1]}: moved {1e3 * row[2]:.3f} mm '
                       f'(Coulomb {1e3 * row[3]:.3f} mm)', flush=True)
         if args.only != 'b':
-            moved, lr = case_a(runner, case, dl)
-            a_rows.append((case.name, moved, lr))
+            moved, lr, centre, roll = case_a(runner, case, dl)
+            a_rows.append((case.name, moved, lr, centre, roll))
             print(f'(a) {case.name}: end moved {[round(1e3 * m, 2) for m in moved]} mm at 1/3/10 s, relaxed length '
-                  f'{1e3 * lr:.1f} mm (l* {1e3 * l_star(10.0):.1f} mm)', flush=True)
+                  f'{1e3 * lr:.1f} mm (l* {1e3 * l_star(10.0):.1f} mm), middle moved {1e3 * centre:.2f} mm, '
+                  f'median roll {roll:.1f} deg', flush=True)
         print(f'    ({time.perf_counter() - t0:.0f} s)', flush=True)
     out = results_path(args, 'friction_canonical.md')
     lines = ['# Canonical friction cases in both simulators, `benchmarks/friction_canonical.py`', '',
@@ -284,12 +299,15 @@ def main():
                   '| simulator | direction | F / (mu N) | mean displacement mm | Coulomb mm |', '|---|---|---|---|---|']
         lines += [f'| {n} | {d} | {r:g} | {1e3 * m:.3f} | {1e3 * c:.3f} |' for n, d, r, m, c in b_rows]
     if a_rows:
-        lines += ['', f'## (a) arc of curvature 10 /m, 0.3 m, released at rest, both ends free', '',
+        lines += ['', '## (a) arc of curvature 10 /m, 0.3 m, released at rest, both ends free', '',
                   f'Relaxed-length scale l* = sqrt(2 EI kappa / (mu rho A g)) = {1e3 * l_star(10.0):.1f} mm. '
                   'Coulomb: the end stops once friction holds the rest (3 s = 10 s).', '',
-                  '| simulator | end moved at 1 s mm | 3 s | 10 s | relaxed length at 10 s mm |', '|---|---|---|---|---|']
-        lines += [f'| {n} | {1e3 * m[0]:.2f} | {1e3 * m[1]:.2f} | {1e3 * m[2]:.2f} | {1e3 * lr:.1f} |'
-                  for n, m, lr in a_rows]
+                  '| simulator | end moved at 1 s mm | 3 s | 10 s | relaxed length at 10 s mm | '
+                  'middle of the arc moved at 10 s mm | elements rolled about their axis at 10 s (median) deg |',
+                  '|---|---|---|---|---|---|---|']
+        lines += [f'| {n} | {1e3 * m[0]:.2f} | {1e3 * m[1]:.2f} | {1e3 * m[2]:.2f} | {1e3 * lr:.1f} | '
+                  f'{1e3 * c:.2f} | '
+                  f'{"" if not np.isfinite(r) else f"{r:.1f}"} |' for n, m, lr, c, r in a_rows]
     out.write_text('\n'.join(lines) + '\n')
     print(f'results: {out}')
 

@@ -9,9 +9,11 @@ rod simulator, used as a library) and score the deployed shape with our Eq. 17.
 Set-up, the same as our simulator's (``rod_deploy.deployment.simulate``, CONTRACTS.md section 4) but in another
 model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet steps) of the rod's E, density and
 radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
-plane's response force) with its friction model (``RodPlaneContactWithAnisotropicFriction``, the same mu forward,
-backward and sideways; sideways friction acts on the rolling slip, so a round rod may roll), uniform viscous damping
-(the same 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
+plane's response force) with Coulomb friction on the elements' centreline velocity (``CentrelineCoulombPlane``,
+PyElastica's static / kinetic switch at the slip tolerance; ``--friction-law pyelastica``: PyElastica's own
+``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
+a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
+2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
 to the trajectory's first (hanging) pose, uniformly stretched to reach it, and settles there at rest with both ends
 held; then the last node follows the gripper's position and the last element its directors (d1 = x_gripper,
 d3 = -z_gripper), the free end held during the lead-in (the same ``replay_schedule`` as our simulator, 0.01 m/s);
@@ -77,7 +79,7 @@ class ElasticaSettings:
     settle_s: float = 1.0             # gripper still at the end
     contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
-    friction_law: str = 'pyelastica'  # PyElastica's RodPlaneContactWithAnisotropicFriction, or 'centreline'
+    friction_law: str = 'centreline'  # CentrelineCoulombPlane, or 'pyelastica' (RodPlaneContactWithAnisotropicFriction)
 
 
 def rotary_inertia_scaled(rod_e, scale):
@@ -129,8 +131,8 @@ class CentrelineCoulombPlane(ea.NoContact):
     point's slip, v + omega x r, with the no-slip force of a free solid cylinder, (r F - 2 T) / (3 r): the laid rod
     rolls sideways under any sideways load (a rigid round cylinder does). A laid rod rolls little in fact: rolling
     one stretch of length l relative to the rest twists the rod, and against bending the twist's compliance is
-    (r / l)^2 EI / GJ, 0.2 % for r = 2 mm and l = 5 cm; the rolling mode of the whole rod is free in that model
-    and is driven by the uneven friction torques (``friction_canonical.py``: an arc at rest rolls on at 6 deg/s).
+    (r / l)^2 EI / GJ, 0.2 % for r = 2 mm and l = 5 cm. In that model a straight rod under half the friction limit
+    sideways rolls like a free cylinder, and an arc laid at rest keeps rolling (``friction_canonical.py``).
     Our DER's friction acts on the centreline too (no rolling), as in the paper's simulator."""
 
     def __init__(self, k, nu, mu, slip_velocity_tol):
@@ -362,7 +364,7 @@ def main():
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
     ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
                     help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
-    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline'), default='pyelastica',
+    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline'), default=ElasticaSettings.friction_law,
                     help="PyElastica's anisotropic friction (sideways on the rolling slip) or Coulomb friction on "
                          'the centreline (no rolling; see CentrelineCoulombPlane)')
     ap.add_argument('--plots', action='store_true')
