@@ -86,12 +86,15 @@ def main():
     ap.add_argument('--methods', default='nn,intuitive,published')
     ap.add_argument('--patterns', default='all')
     ap.add_argument('--plots', action='store_true')
+    ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
+                    help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
+    ap.add_argument('--tag', default='', help='suffix of the results file')
     add_results_argument(ap)
     args = ap.parse_args()
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')
-    out = results_path(args, 'deployment_table.md')
+    out = results_path(args, f'deployment_table{args.tag}.md')
     rows = []
     t_all = time.perf_counter()
     for rod_id in (int(r) for r in args.rods.split(',')):
@@ -111,7 +114,8 @@ def main():
                             plan = plan_trajectory(P, rod, PlannerSettings(method=method))
                             t, p, q, start = plan.t, plan.position, plan.quaternion, None
                         res = simulate_deployment(t, p, q, rod, SimulationSettings(
-                            friction=FRICTION_LEVELS[fr], start_xy=start))
+                            friction=FRICTION_LEVELS[fr], start_xy=start,
+                            friction_velocity_m_s=args.friction_velocity))
                         e = eq17_error(P, res.deployed_xy)
                         row = (rod_id, fr, name, method, e['e_mean_cm'], e['sigma_cm'], e['coverage'],
                                res.wall_time_s, '')
@@ -128,8 +132,8 @@ def main():
     lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
              'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
-             'friction); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
-             'pattern length. Self-contact ignored.', '',
+             f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed '
+             'curve cut at the pattern length; coverage = deployed / pattern length. Self-contact ignored.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:

@@ -9,9 +9,11 @@ rod simulator, used as a library) and score the deployed shape with our Eq. 17.
 Set-up, the same as our simulator's (``rod_deploy.deployment.simulate``, CONTRACTS.md section 4) but in another
 model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet steps) of the rod's E, density and
 radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
-plane's response force) with its friction model (``RodPlaneContactWithAnisotropicFriction``, the same mu forward,
-backward and sideways; sideways friction acts on the rolling slip, so a round rod may roll), uniform viscous damping
-(the same 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
+plane's response force) with Coulomb friction on the elements' centreline velocity (``CentrelineCoulombPlane``,
+PyElastica's static / kinetic switch at the slip tolerance; ``--friction-law pyelastica``: PyElastica's own
+``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
+a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
+2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
 to the trajectory's first (hanging) pose, uniformly stretched to reach it, and settles there at rest with both ends
 held; then the last node follows the gripper's position and the last element its directors (d1 = x_gripper,
 d3 = -z_gripper), the free end held during the lead-in (the same ``replay_schedule`` as our simulator, 0.01 m/s);
@@ -51,6 +53,11 @@ except ImportError:                     # pragma: no cover - the benchmark envir
     sys.exit('pyelastica_replay: error: PyElastica is not installed here; run `make bench-env` and use '
              '.venv-bench/bin/python')
 
+from elastica._contact_functions import _calculate_contact_forces_rod_plane  # noqa: E402
+from elastica._linalg import _batch_norm, _batch_product_i_ik_to_k, _batch_product_i_k_to_ik  # noqa: E402
+from elastica.contact_utils import (_elements_to_nodes_inplace, _find_slipping_elements,  # noqa: E402
+                                    _node_to_element_mass_or_force, _node_to_element_velocity)
+from numba import njit  # noqa: E402
 from rod_deploy.deployment.metrics import eq17_error  # noqa: E402
 from rod_deploy.deployment.simulate import FRICTION_LEVELS, material_parameters, replay_schedule  # noqa: E402
 from rod_deploy.planning.rod_description import rod_description_from_dict  # noqa: E402
@@ -72,6 +79,7 @@ class ElasticaSettings:
     settle_s: float = 1.0             # gripper still at the end
     contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
+    friction_law: str = 'centreline'  # CentrelineCoulombPlane, or 'pyelastica' (RodPlaneContactWithAnisotropicFriction)
 
 
 def rotary_inertia_scaled(rod_e, scale):
@@ -89,6 +97,58 @@ def rod_material(rod):
     p = material_parameters(rod, 0.5, 0.0)
     A = math.pi * rod.radius_m ** 2
     return p.EA / A, p.rho_A / A
+
+
+@njit(cache=True)
+def _centreline_coulomb(origin, normal, surface_tol, slip_tol, k, nu, mu, radius, mass, position, velocity,
+                        internal_forces, external_forces):
+    """PyElastica's rod-plane contact (its normal force, its static / kinetic switch at the slip tolerance) with
+    isotropic Coulomb friction on the elements' centreline velocity and no friction torque: the friction law of
+    its axial direction, applied in every in-plane direction."""
+    n_mag, no_contact = _calculate_contact_forces_rod_plane(origin, normal, surface_tol, k, nu, radius, mass,
+                                                            position, velocity, internal_forces, external_forces)
+    v = _node_to_element_velocity(mass, velocity)
+    v_t = v - _batch_product_i_k_to_ik(normal, _batch_product_i_ik_to_k(normal, v))
+    slip = _find_slipping_elements(v_t, slip_tol)        # 1: sticking, 0: slipping (linear in between)
+    speed = _batch_norm(v_t)
+    kinetic = v_t * (-(1.0 - slip) * mu * n_mag / (speed + 1e-14))
+    for j in no_contact:
+        kinetic[:, j] = 0.0
+    _elements_to_nodes_inplace(kinetic, external_forces)
+    f = _node_to_element_mass_or_force(internal_forces + external_forces)
+    f_t = f - _batch_product_i_k_to_ik(normal, _batch_product_i_ik_to_k(normal, f))
+    f_mag = _batch_norm(f_t)
+    static = f_t * (-np.minimum(f_mag, slip * mu * n_mag) / (f_mag + 1e-14))
+    for j in no_contact:
+        static[:, j] = 0.0
+    _elements_to_nodes_inplace(static, external_forces)
+
+
+class CentrelineCoulombPlane(ea.NoContact):
+    """Rod-plane contact with Coulomb friction on the centreline (no rolling): ``--friction-law centreline``.
+
+    PyElastica's own law (``RodPlaneContactWithAnisotropicFriction``) applies sideways friction to the contact
+    point's slip, v + omega x r, with the no-slip force of a free solid cylinder, (r F - 2 T) / (3 r): the laid rod
+    rolls sideways under any sideways load (a rigid round cylinder does). A laid rod rolls little in fact: rolling
+    one stretch of length l relative to the rest twists the rod, and against bending the twist's compliance is
+    (r / l)^2 EI / GJ, 0.2 % for r = 2 mm and l = 5 cm. In that model a straight rod under half the friction limit
+    sideways rolls like a free cylinder, and an arc laid at rest keeps rolling (``friction_canonical.py``).
+    Our DER's friction acts on the centreline too (no rolling), as in the paper's simulator."""
+
+    def __init__(self, k, nu, mu, slip_velocity_tol):
+        super().__init__()
+        self.k, self.nu, self.mu = np.float64(k), np.float64(nu), np.float64(mu)
+        self.slip_velocity_tol = np.float64(slip_velocity_tol)
+        self.surface_tol = np.float64(1.0e-4)
+
+    @property
+    def _allowed_system_two(self):
+        return [ea.Plane]
+
+    def apply_contact(self, system_one, system_two, time=np.float64(0.0)):
+        _centreline_coulomb(system_two.origin, system_two.normal, self.surface_tol, self.slip_velocity_tol, self.k,
+                            self.nu, self.mu, system_one.radius, system_one.mass, system_one.position_collection,
+                            system_one.velocity_collection, system_one.internal_forces, system_one.external_forces)
 
 
 class _Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping, ea.Contact, ea.CallBacks):
@@ -176,9 +236,14 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True):
         sim.constrain(rod_e).using(PrescribedEnds, grid_t=grid_t, grid_p=grid_p, grid_Q=grid_Q, start=start,
                                    t_release=s.hang_settle_s + sched.t_release)
         sim.add_forcing_to(rod_e).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -G]))
-        sim.detect_contact_between(rod_e, plane).using(
-            ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
-            slip_velocity_tol=s.slip_velocity_tol_m_s, static_mu_array=mu, kinetic_mu_array=mu)
+        if s.friction_law == 'centreline':
+            sim.detect_contact_between(rod_e, plane).using(
+                CentrelineCoulombPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction,
+                slip_velocity_tol=s.slip_velocity_tol_m_s)
+        else:
+            sim.detect_contact_between(rod_e, plane).using(
+                ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
+                slip_velocity_tol=s.slip_velocity_tol_m_s, static_mu_array=mu, kinetic_mu_array=mu)
         sim.dampen(rod_e).using(ea.AnalyticalLinearDamper, uniform_damping_constant=s.damping_per_s,
                                 time_step=s.dt_s)
         rods.append(rod_e)
@@ -299,6 +364,9 @@ def main():
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
     ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
                     help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
+    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline'), default=ElasticaSettings.friction_law,
+                    help="PyElastica's anisotropic friction (sideways on the rolling slip) or Coulomb friction on "
+                         'the centreline (no rolling; see CentrelineCoulombPlane)')
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--tag', default='', help='suffix of the results files')
     ap.add_argument('--merge', nargs='+', metavar='JSON',
@@ -310,7 +378,8 @@ def main():
     add_results_argument(ap)
     args = ap.parse_args()
     settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
-                                slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale)
+                                slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale,
+                                friction_law=args.friction_law)
     t_all = time.perf_counter()
     checks = []
     if args.merge:
@@ -410,8 +479,10 @@ def _write(out, rows, checks, s, wall):
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {wall:.0f} s in all. Cosserat rod, element '
              f'{1e3 * s.element_length_m:g} mm, position Verlet dt {s.dt_s:g} s, uniform damping '
              f'{s.damping_per_s:g}/s, rod-plane contact k {s.contact_k_n_m:g} N/m nu {s.contact_nu_n_s_m:g} N s/m '
-             f'with PyElastica\'s friction (static / kinetic mu, slip tolerance {s.slip_velocity_tol_m_s:g} m/s, '
-             f'sideways on the rolling slip); hanging {s.hang_settle_s:g} s first, gripper at 0.01 m/s, '
+             + (f'with Coulomb friction on the centreline (`CentrelineCoulombPlane`: no rolling; static / kinetic '
+                f'switch at slip tolerance {s.slip_velocity_tol_m_s:g} m/s)' if s.friction_law == 'centreline' else
+                f'with PyElastica\'s friction (static / kinetic mu, slip tolerance {s.slip_velocity_tol_m_s:g} m/s, '
+                f'sideways on the rolling slip)') + f'; hanging {s.hang_settle_s:g} s first, gripper at 0.01 m/s, '
              f'{s.settle_s:g} s still at the end. Eq. 17, N = 50 (ours). "ours": our DER simulator\'s e_mean '
              f'from `deployment_table.md` in the same folder (or the tables given by --ours).', '',
              '## Closed forms (`--validate`; the rod material of the table\'s rods)', '',
