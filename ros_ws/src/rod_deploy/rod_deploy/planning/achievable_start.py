@@ -37,6 +37,12 @@ def start_length_needed_m(kappa_bar, gravito_bending_length_m, friction, share=1
     return 2.0 * gravito_bending_length_m * np.sqrt(np.abs(kappa_bar) / (share * friction))
 
 
+def _cumtrapz(f, ds):
+    """Cumulative trapezoids of f (m, ...) on steps ds (m - 1,), starting at 0."""
+    inc = 0.5 * (f[1:] + f[:-1]) * ds.reshape((-1,) + (1,) * (f.ndim - 1))
+    return np.concatenate([np.zeros((1,) + f.shape[1:]), np.cumsum(inc, axis=0)])
+
+
 def _integrate(s, theta0, kappa, origin):
     """Curve with heading theta0 + int kappa from ``origin`` (trapezoids): (xy (m, 2), heading (m,))."""
     ds = np.diff(s)
@@ -73,17 +79,33 @@ def achievable_start(pattern, gravito_bending_length_m: float, friction: float, 
         xy, theta = _integrate(sc, theta_p + x[0], kappa, pattern.xy[0])
         return kappa, xy, theta
 
+    ds = np.diff(sc)
+    # d theta / d x: the start heading, and each knot's correction integrated (the curve is linear in theta)
+    dtheta = np.column_stack([np.ones(n_c + 1), _cumtrapz(hat, ds) / Lgb])
+    smooth = w_smooth * np.diff(np.eye(knots), axis=0)
+
     def residuals(x):
         kappa, xy, theta = curve(x)
         fit = (xy - pattern.xy[:n_c + 1]).ravel() / Lgb
         junction = np.concatenate([(xy[-1] - pattern.xy[n_c]) / Lgb, [np.angle(np.exp(1j * (theta[-1] - theta_c)))]])
         excess = np.maximum(np.abs(kappa) - kappa_cap, 0.0) * Lgb
-        return np.concatenate([fit, 10 * w_pen * junction, w_pen * excess, w_smooth * np.diff(x[1:])])
+        return np.concatenate([fit, 10 * w_pen * junction, w_pen * excess, smooth @ x[1:]])
+
+    def jacobian(x):
+        kappa, _, theta = curve(x)
+        dx = _cumtrapz(-np.sin(theta)[:, None] * dtheta, ds) / Lgb
+        dy = _cumtrapz(np.cos(theta)[:, None] * dtheta, ds) / Lgb
+        fit = np.stack([dx, dy], axis=1).reshape(2 * (n_c + 1), -1)
+        junction = np.vstack([dx[-1], dy[-1], dtheta[-1]])
+        active = (np.abs(kappa) > kappa_cap) * np.sign(kappa)
+        excess = np.column_stack([np.zeros(n_c + 1), active[:, None] * hat])
+        return np.vstack([fit, 10 * w_pen * junction, w_pen * excess,
+                          np.column_stack([np.zeros(knots - 1), smooth])])
 
     # start from the clipped curvature (what the rod would lay), heading unchanged
     x0 = np.zeros(knots + 1)
     x0[1:] = np.linalg.lstsq(hat, (np.clip(kappa_p, -kappa_cap, kappa_cap) - kappa_p) * Lgb, rcond=None)[0]
-    sol = least_squares(residuals, x0, method='trf', ftol=1e-6, xtol=1e-6, gtol=1e-8, max_nfev=100)
+    sol = least_squares(residuals, x0, jac=jacobian, method='trf', ftol=1e-6, xtol=1e-6, gtol=1e-8, max_nfev=100)
     kappa, xy, theta = curve(sol.x)
     from .trajectory import ProcessedPattern
     tangent = np.column_stack([np.cos(theta), np.sin(theta)])
