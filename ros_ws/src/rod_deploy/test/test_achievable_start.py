@@ -72,3 +72,24 @@ def test_planner_option():
         plan_trajectory(pts, ROD, PlannerSettings(start='curved'))
     with pytest.raises(PlanningError, match='friction_share'):
         plan_trajectory(pts, ROD, PlannerSettings(start='achievable', friction_share=0.0))
+
+
+def test_cli_plan_start_option(tmp_path, capsys):
+    import json
+
+    from rod_deploy.cli.main import main as cli
+    from rod_deploy.planning.trajectory_io import read_trajectory_csv
+    pattern = tmp_path / 'arc.txt'
+    np.savetxt(pattern, arc(0.1, np.pi))
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.6\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    outs = {}
+    for start in ('tangent', 'achievable'):
+        out = tmp_path / f'{start}.csv'
+        assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(out), '--start', start]) == 0
+        json.loads(capsys.readouterr().out)
+        outs[start] = read_trajectory_csv(out)
+    a, b = outs['tangent'], outs['achievable']
+    assert len(a[0]) == len(b[0])
+    np.testing.assert_allclose(a[1][0], b[1][0], atol=1e-9)            # the same hanging pose above P(0)
+    assert np.max(np.abs(a[1] - b[1])) > 1e-4                           # a different start
