@@ -8,7 +8,8 @@ its defaults (5 mm edges, dt 0.02 s, gripper at 0.01 m/s, the free end released 
 changing one thing: ``hold`` the free end pinned throughout (``hold_free_end='always'``); ``slow`` the gripper at
 half speed (0.005 m/s); ``fine`` 2.5 mm edges; ``numeric`` the numeric planner instead of the network; ``mu1`` high
 friction (1.0); planner changes: ``ends`` the spline's end weights (``PlannerSettings.end_weight``), ``start`` the
-friction-limited start (``PlannerSettings.start='achievable'``), ``both``.
+friction-limited start (``PlannerSettings.start='achievable'``), ``both``, ``both_half`` (both, counting on half
+the friction: ``friction_share=0.5``).
 
 Besides Eq. 17 each run reports the part of the error a rigid motion of the deployed curve removes (``e_rigid``:
 e_mean after the best rotation + translation, Kabsch on the N = 50 resampled points), how far the free end moved
@@ -48,6 +49,8 @@ VARIANTS = {
     'ends': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight), BASE_SIM),
     'start': (replace(BASE_PLAN, start='achievable'), BASE_SIM),
     'both': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable'), BASE_SIM),
+    'both_half': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable',
+                          friction_share=0.5), BASE_SIM),
 }
 
 
