@@ -2,10 +2,12 @@
 scored with Eq. 17 (N = 50).
 
     python benchmarks/deployment_table.py [--rods 2,3] [--friction medium] [--methods nn,intuitive,published]
-                                          [--patterns all] [--commit-results]
+                                          [--patterns all] [--start tangent|achievable] [--out-name NAME.md]
+                                          [--plots] [--commit-results]
 
 Patterns: the paper's 7 (``../shared/reference/rod_deployment/patterns``, read in place when present) and shapes of
-our own made here by code (a spiral, the digit 2, the letter S, a loop that crosses itself). Rods: the paper's
+our own made here by code (a spiral, the digit 2, the letter S, a loop that crosses itself; for the study of the
+start, drawn after the friction-limited start was designed: the digit 6, the letter G, a tight wave). Rods: the paper's
 Table 1 (#1 pink VPS L_gb 1.8 cm h 1.6 mm L 0.875 m, #2 green VPS 3.2 / 1.6 / 0.885, #3 rope 3.4 / 2.0 / 0.89).
 Friction levels: low 0.2, medium 0.5, high 1.0. Planners: ours (``nn``, ``numeric``), the paper's ``intuitive``
 baseline, and ``published``: the released planner's trajectories for the 7 patterns (rod #3 only, the rod they
