@@ -27,6 +27,12 @@ from scipy.optimize import least_squares
 
 
 
+#: weight of the rate of change of the planned curvature, d kappa_bar / d(s / L_gb), against the distance from the
+#: pattern (in L_gb): without it the least-squares start catches up with the pattern by a curvature that oscillates
+#: (letter C: kappa_bar -0.77, +0.13, -0.60 within 3 cm), which swings the gripper by centimetres
+BEND_RATE_WEIGHT = 0.3
+
+
 def friction_curvature_limit(s_m, gravito_bending_length_m, friction, share=1.0):
     """kappa_max(s) [1/m]: the largest curvature friction can hold at arc length s from a free end."""
     return share * friction * np.asarray(s_m, float) ** 2 / (4.0 * gravito_bending_length_m ** 3)
@@ -73,6 +79,7 @@ def achievable_start(pattern, gravito_bending_length_m: float, friction: float, 
     sc, kappa_p, hat = s[:n_c + 1], pattern.kappa[:n_c + 1], hat[:n_c + 1]
     w_pen = 10.0 * np.sqrt(n_c + 1)      # constraint violations weigh like 10 x the whole fit, the junction 100 x
     w_smooth = 1e-2
+    w_bend_rate = BEND_RATE_WEIGHT                # the planned curvature changes smoothly (the grasp follows it)
 
     def curve(x):
         kappa = kappa_p + hat @ x[1:] / Lgb
@@ -89,7 +96,8 @@ def achievable_start(pattern, gravito_bending_length_m: float, friction: float, 
         fit = (xy - pattern.xy[:n_c + 1]).ravel() / Lgb
         junction = np.concatenate([(xy[-1] - pattern.xy[n_c]) / Lgb, [np.angle(np.exp(1j * (theta[-1] - theta_c)))]])
         excess = np.maximum(np.abs(kappa) - kappa_cap, 0.0) * Lgb
-        return np.concatenate([fit, 10 * w_pen * junction, w_pen * excess, smooth @ x[1:]])
+        rate = w_bend_rate * np.diff(kappa) / ds * Lgb ** 2
+        return np.concatenate([fit, 10 * w_pen * junction, w_pen * excess, smooth @ x[1:], rate])
 
     def jacobian(x):
         kappa, _, theta = curve(x)
@@ -99,8 +107,9 @@ def achievable_start(pattern, gravito_bending_length_m: float, friction: float, 
         junction = np.vstack([dx[-1], dy[-1], dtheta[-1]])
         active = (np.abs(kappa) > kappa_cap) * np.sign(kappa)
         excess = np.column_stack([np.zeros(n_c + 1), active[:, None] * hat])
+        rate = w_bend_rate * np.column_stack([np.zeros(n_c), np.diff(hat, axis=0) / ds[:, None] * Lgb])
         return np.vstack([fit, 10 * w_pen * junction, w_pen * excess,
-                          np.column_stack([np.zeros(knots - 1), smooth])])
+                          np.column_stack([np.zeros(knots - 1), smooth]), rate])
 
     # start from the clipped curvature (what the rod would lay), heading unchanged
     x0 = np.zeros(knots + 1)
