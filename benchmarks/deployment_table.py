@@ -161,7 +161,8 @@ def main():
                                res.wall_time_s, '')
                         if args.plots:
                             from rod_deploy.deployment.plots import plot_deployment
-                            plot_deployment(out.parent / f'deploy_{name}_{method}_rod{rod_id}_{fr}.png', res, P,
+                            tag = f'_{args.start}' if args.start and method != 'published' else ''
+                            plot_deployment(out.parent / f'deploy_{name}_{method}_rod{rod_id}_{fr}{tag}.png', res, P,
                                             f'{name}, {method}, rod #{rod_id}, {fr} friction')
                     except ValueError as exc:
                         row = (rod_id, fr, name, method, np.nan, np.nan, np.nan, time.perf_counter() - t0,
