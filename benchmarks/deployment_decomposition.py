@@ -3,7 +3,8 @@
     python benchmarks/deployment_decomposition.py [--rod 3] [--patterns circle,sine,letterC,letterA]
                                                   [--variants all] [--tag NAME] [--commit-results]
 
-Baseline: our network's plan (``nn``) as it was before this study (equal spline weights, tangent start), the paper's rod (default #3), medium friction (0.5), our DER simulator with
+Baseline: our network's plan (``nn``) as it was before this study (equal spline weights, tangent start), the
+paper's rod (default #3), medium friction (0.5), our DER simulator with
 its defaults (5 mm edges, dt 0.02 s, gripper at 0.01 m/s, the free end released after the lead-in). Variants, each
 changing one thing: ``hold`` the free end pinned throughout (``hold_free_end='always'``); ``slow`` the gripper at
 half speed (0.005 m/s); ``fine`` 2.5 mm edges; ``numeric`` the numeric planner instead of the network; ``mu1`` high
@@ -47,8 +48,9 @@ VARIANTS = {
     'numeric': (replace(BASE_PLAN, method='numeric'), BASE_SIM),
     'mu1': (BASE_PLAN, replace(BASE_SIM, friction=1.0)),
     'ends': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight), BASE_SIM),
-    'start': (replace(BASE_PLAN, start='achievable'), BASE_SIM),
-    'both': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable'), BASE_SIM),
+    'start': (replace(BASE_PLAN, start='achievable', friction_share=1.0), BASE_SIM),
+    'both': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable', friction_share=1.0),
+             BASE_SIM),
     'both_half': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable',
                           friction_share=0.5), BASE_SIM),
 }
@@ -125,7 +127,8 @@ def main():
              f'--rod {args.rod} --patterns {args.patterns} --variants {args.variants}'
              f'{f" --truncate-m {args.truncate_m}" if args.truncate_m else ""}`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores (shared, loaded); '
-             f'{time.perf_counter() - t_all:.0f} s in all. Rod #{args.rod} ({rod.length_m:g} m long); baseline: nn plan, mu 0.5, 5 mm edges, '
+             f'{time.perf_counter() - t_all:.0f} s in all. Rod #{args.rod} ({rod.length_m:g} m long); '
+             'baseline: nn plan, mu 0.5, 5 mm edges, '
              'dt 0.02 s, 0.01 m/s, free end released after the lead-in. e_rigid: e_mean after the best rigid '
              'motion of the deployed curve; free end: its final distance from the pattern\'s first point; start: '
              'heading of the first 3 cm, deployed minus pattern.', '',

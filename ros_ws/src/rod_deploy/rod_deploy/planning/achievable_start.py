@@ -16,7 +16,8 @@ turns with it.
 nodes, same arc length, the same first point: the free end stays at P(0)) whose curvature respects kappa_max: the
 start heading and a curvature correction on the first ``S_c`` of the pattern (piecewise linear, zero at S_c) are the
 unknowns, the rate of change of the planned curvature is penalised (``BEND_RATE_WEIGHT``: the grasp follows the
-curvature, so an oscillating catch-up would swing the gripper); beyond S_c the planned curve's curvature is the pattern's, so a correction that returns the curve onto the
+curvature, so an oscillating catch-up would swing the gripper); beyond S_c the planned curve's curvature is the
+pattern's, so a correction that returns the curve onto the
 pattern's position and heading at S_c leaves the rest exactly on it. This is the paper's "remainder" (Sec. 6.4.1,
 a start whose curvature grows from zero) chosen to minimise the deviation from the pattern, without moving the free
 end off the pattern's first point. Patterns that never ask for more than kappa_max are returned unchanged.
