@@ -2,10 +2,12 @@
 scored with Eq. 17 (N = 50).
 
     python benchmarks/deployment_table.py [--rods 2,3] [--friction medium] [--methods nn,intuitive,published]
-                                          [--patterns all] [--commit-results]
+                                          [--patterns all] [--start tangent|achievable] [--out-name NAME.md]
+                                          [--plots] [--commit-results]
 
 Patterns: the paper's 7 (``../shared/reference/rod_deployment/patterns``, read in place when present) and shapes of
-our own made here by code (a spiral, the digit 2, the letter S, a loop that crosses itself). Rods: the paper's
+our own made here by code (a spiral, the digit 2, the letter S, a loop that crosses itself; for the study of the
+start, drawn after the friction-limited start was designed: the digit 6, the letter G, a tight wave). Rods: the paper's
 Table 1 (#1 pink VPS L_gb 1.8 cm h 1.6 mm L 0.875 m, #2 green VPS 3.2 / 1.6 / 0.885, #3 rope 3.4 / 2.0 / 0.89).
 Friction levels: low 0.2, medium 0.5, high 1.0. Planners: ours (``nn``, ``numeric``), the paper's ``intuitive``
 baseline, and ``published``: the released planner's trajectories for the 7 patterns (rod #3 only, the rod they
@@ -54,6 +56,20 @@ def own_patterns():
     u = np.linspace(-1.2, 1.2, 400)                                   # a loop that crosses itself (alpha)
     loop = np.column_stack([0.18 * (u ** 2 - 1), 0.15 * u * (u ** 2 - 1) * 1.5])
     out['loop_crossing'] = loop - loop[0]
+    # drawn for the start study (not used while the friction-limited start was designed): a curved start each
+    pts = np.array([[0.06, 0.12], [0.0, 0.13], [-0.05, 0.08], [-0.065, 0.0], [-0.035, -0.06], [0.03, -0.065],
+                    [0.055, -0.015], [0.025, 0.03], [-0.03, 0.025]])              # the digit 6
+    tck, _ = splprep(pts.T, s=0, k=3)
+    digit6 = np.column_stack(splev(np.linspace(0, 1, 400), tck))
+    out['digit6'] = digit6 - digit6[0]
+    th = np.linspace(0.25 * np.pi, 1.9 * np.pi, 300)                  # the letter G: an arc from its upper tip,
+    g = np.column_stack([0.1 * np.cos(th), 0.1 * np.sin(th)])           # then a tighter turn (radius 3 cm) inwards
+    phi = np.linspace(0.0, 0.5 * np.pi, 40)[1:] + th[-1]
+    hook = g[-1] + 0.03 * np.column_stack([np.cos(phi) - np.cos(th[-1]), np.sin(phi) - np.sin(th[-1])])
+    letter_g = np.vstack([g, hook])
+    out['letterG'] = letter_g - letter_g[0]
+    x = np.linspace(0, 0.5, 400)                                        # a wave of radius 5 cm at its crests,
+    out['wave_tight'] = np.column_stack([x, 0.03 * np.sin(2 * np.pi * x / 0.24 + 1.0)])  # starting mid-bend
     return out
 
 
@@ -79,22 +95,46 @@ def published_trajectory(name):
     return trajectory_times(d[:, :3], q, 0.01, 0.2), d[:, :3], q
 
 
+def write_table(out, rows, t_all, args):
+    lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
+             f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
+             'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
+             f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
+             f'pattern length. Self-contact ignored. Planner start: {args.start or "the default"}.', '',
+             '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
+             '|---|---|---|---|---|---|---|---|---|']
+    for r in rows:
+        lines.append(f'| #{r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]:.3f} | {r[5]:.3f} | {r[6]:.2f} | {r[7]:.0f} | '
+                     f'{r[8]} |')
+    by = {}
+    for r in rows:
+        if np.isfinite(r[4]):
+            by.setdefault(r[3], []).append(r[4])
+    lines += ['', '| planner | cases | mean e_mean cm | max |', '|---|---|---|---|']
+    for m, v in by.items():
+        lines.append(f'| {m} | {len(v)} | {np.mean(v):.3f} | {np.max(v):.3f} |')
+    out.write_text('\n'.join(lines) + '\n')
+    return lines, by
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--rods', default='3')
     ap.add_argument('--friction', default='medium')
     ap.add_argument('--methods', default='nn,intuitive,published')
     ap.add_argument('--patterns', default='all')
+    ap.add_argument('--start', default=None, choices=('tangent', 'achievable'),
+                    help="the planner's start (PlannerSettings.start; default: the planner's default)")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
-    ap.add_argument('--tag', default='', help='suffix of the results file')
+    ap.add_argument('--out-name', default='deployment_table.md', help='name of the results file')
     add_results_argument(ap)
     args = ap.parse_args()
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')
-    out = results_path(args, f'deployment_table{args.tag}.md')
+    out = results_path(args, args.out_name)
     rows = []
     t_all = time.perf_counter()
     for rod_id in (int(r) for r in args.rods.split(',')):
@@ -111,7 +151,10 @@ def main():
                             t, p, q = published_trajectory(name)
                             start = tuple(P[0])
                         else:
-                            plan = plan_trajectory(P, rod, PlannerSettings(method=method))
+                            plan_settings = PlannerSettings(method=method)
+                            if args.start:
+                                plan_settings.start = args.start
+                            plan = plan_trajectory(P, rod, plan_settings)
                             t, p, q, start = plan.t, plan.position, plan.quaternion, None
                         res = simulate_deployment(t, p, q, rod, SimulationSettings(
                             friction=FRICTION_LEVELS[fr], start_xy=start,
@@ -121,7 +164,8 @@ def main():
                                res.wall_time_s, '')
                         if args.plots:
                             from rod_deploy.deployment.plots import plot_deployment
-                            plot_deployment(out.parent / f'deploy_{name}_{method}_rod{rod_id}_{fr}.png', res, P,
+                            tag = f'_{args.start}' if args.start and method != 'published' else ''
+                            plot_deployment(out.parent / f'deploy_{name}_{method}_rod{rod_id}_{fr}{tag}.png', res, P,
                                             f'{name}, {method}, rod #{rod_id}, {fr} friction')
                     except ValueError as exc:
                         row = (rod_id, fr, name, method, np.nan, np.nan, np.nan, time.perf_counter() - t0,
@@ -129,24 +173,8 @@ def main():
                     rows.append(row)
                     print(f'rod #{row[0]} {row[1]:6s} {row[2]:14s} {row[3]:10s} e_mean {row[4]:.3f} cm '
                           f'sigma {row[5]:.3f} coverage {row[6]:.2f} ({row[7]:.0f} s) {row[8]}', flush=True)
-    lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
-             f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
-             'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
-             f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed '
-             'curve cut at the pattern length; coverage = deployed / pattern length. Self-contact ignored.', '',
-             '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
-             '|---|---|---|---|---|---|---|---|---|']
-    for r in rows:
-        lines.append(f'| #{r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]:.3f} | {r[5]:.3f} | {r[6]:.2f} | {r[7]:.0f} | '
-                     f'{r[8]} |')
-    by = {}
-    for r in rows:
-        if np.isfinite(r[4]):
-            by.setdefault(r[3], []).append(r[4])
-    lines += ['', '| planner | cases | mean e_mean cm | max |', '|---|---|---|---|']
-    for m, v in by.items():
-        lines.append(f'| {m} | {len(v)} | {np.mean(v):.3f} | {np.max(v):.3f} |')
-    out.write_text('\n'.join(lines) + '\n')
+                    write_table(out, rows, t_all, args)
+    lines, by = write_table(out, rows, t_all, args)
     print('\n'.join(lines[-2 - len(by):]))
     print(f'results: {out}')
 

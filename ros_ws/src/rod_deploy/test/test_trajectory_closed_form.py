@@ -142,9 +142,10 @@ def test_orientation_is_continuous(pts):
         lead = (plan.rotation[:k].inv() * plan.rotation[1:k + 1]).magnitude()
         np.testing.assert_allclose(lead, lead.mean(), atol=1e-9)
     # between common nodes (every 5 mm) the two half steps add up to the whole step: no jump hides in between
+    # (to 0.5 degrees: where the curvature changes sign the twist rate varies within a step)
     coarse, fine = turns
     n = min(len(coarse), len(fine) // 2)
-    np.testing.assert_allclose(fine[0:2 * n:2] + fine[1:2 * n:2], coarse[:n], rtol=0.02, atol=np.radians(0.1))
+    np.testing.assert_allclose(fine[0:2 * n:2] + fine[1:2 * n:2], coarse[:n], rtol=0.02, atol=np.radians(0.5))
 
 
 def test_hanging_pose_start_and_straight_lead_in():
@@ -217,6 +218,21 @@ def test_errors_name_the_offending_point():
         plan_trajectory(line((0, 0), 0.0, 0.95, 191), ROD, PlannerSettings(method='nn'))
     x = float(str(e.value).split('node ')[1].split('(')[1].split(',')[0])
     assert x == pytest.approx(0.89 - 0.5 * LGB, abs=0.005)
+
+
+def test_spline_keeps_the_first_point_and_the_start_direction():
+    """A straight start (5 mm points, as the published circle's) then an arc of radius 0.1 m: the smoothing spline
+    stays on the first point and closer to the start's direction and zero curvature than with equal weights (0.62
+    mm, 2.8 degrees, kappa_bar -0.20 there; now 0.02 mm, 0.9 degrees, -0.10: the curvature jump at the arc is
+    smeared over a few centimetres either way)."""
+    straight = np.column_stack([np.zeros(17), -0.005 * np.arange(17)])
+    bend = arc(0.1, 1.5 * np.pi, n=95)[1:] @ np.array([[0.0, -1.0], [1.0, 0.0]]) + straight[-1]
+    pts = np.vstack([straight, bend])
+    p = process_pattern(pts)
+    assert np.linalg.norm(p.xy[0] - pts[0]) < 1e-4
+    assert abs(np.degrees(np.arctan2(p.tangent[0, 0], -p.tangent[0, 1]))) < 1.5
+    assert abs(p.kappa[0]) * LGB < 0.15
+    np.testing.assert_allclose(np.median(p.kappa[40:-5]) * 0.1, 1.0, atol=0.05)
 
 
 def test_process_pattern_resamples_uniformly_by_arc_length():

@@ -2,7 +2,7 @@
 
     rod-deploy plan --pattern P --rod ROD.yaml [--method nn|numeric|intuitive] --out traj.csv [--plot traj.png]
                     [--m-per-px S [--origin ROW COL] | --homography H.txt] [--object K]
-                    [--step 0.005] [--smoothing 0.0005] [--speed 0.01]
+                    [--step 0.005] [--smoothing 0.0005] [--speed 0.01] [--start tangent|achievable]
 
 P: a points file (x y [z] per line, metres, table frame) or an image of a drawn stroke / a photographed rod with
 its mapping (as for ``rod-deploy perceive``). Writes the contract's trajectory CSV (t,x,y,z,qx,qy,qz,qw: table
@@ -10,7 +10,8 @@ frame, the held node of the rod, +z_gripper along which the rod leaves the gripp
 Methods: ``nn`` (default, the trained network), ``numeric`` (the optimal-grasp solver along the pattern with
 curvature continuation: slow, exact), ``intuitive`` (the paper's baseline). A pattern that cannot be deployed (too
 long for the rod, too sharp, fewer than 3 points, NaN, repeated points) gives one error line naming the point,
-exit 2, and no file.
+exit 2, and no file. ``--start achievable``: the start laid along the curve friction can hold near the free end
+(``planning/achievable_start.py``; the rod file's ``friction``, else 0.5), instead of Alg. 4's tangent start.
 """
 from __future__ import annotations
 
@@ -36,6 +37,9 @@ def register(subparsers):
     p.add_argument('--smoothing', type=float, default=0.0005,
                    help='RMS distance the smoothing spline may keep from the pattern points [m] (default 0.0005)')
     p.add_argument('--speed', type=float, default=0.01, help='gripper speed [m/s] (default 0.01)')
+    p.add_argument('--start', choices=('tangent', 'achievable'), default=None,
+                   help="tangent: Alg. 4 from the pattern's first point; achievable: the start bent only as far as "
+                        "friction can hold it near the free end (default: the planner's)")
     p.add_argument('--quiet', action='store_true', help='no progress bar (numeric method)')
     p.set_defaults(func=run)
 
@@ -53,6 +57,8 @@ def run(args) -> int:
                               object_index=args.object)
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
                                    speed_m_s=args.speed)
+        if args.start:
+            settings.start = args.start
         bar = None
         if args.method == 'numeric' and not args.quiet:
             from tqdm import tqdm

@@ -33,6 +33,11 @@ from .pattern_input import PatternError, check_pattern
 from .rod_description import RodDescription
 
 METHODS = ('nn', 'numeric', 'intuitive')
+STARTS = ('tangent', 'achievable')
+#: the table friction the 'achievable' start assumes when neither the settings nor the rod give one (medium)
+DEFAULT_FRICTION = 0.5
+#: weight in the smoothing spline of the pattern points within END_ZONE_M of either end (the others: 1)
+END_WEIGHT, END_ZONE_M = 30.0, 0.01
 #: the gripper frame in the grasp solver's rotation R: columns (R e_z, R e_y, -R e_x)
 GRIPPER_IN_GRASP_FRAME = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 
@@ -51,11 +56,21 @@ class PlannerSettings:
     lead_in_poses: int = 20               # poses from the hanging pose to the first grasp
     min_ls_bar: float = 0.5               # the suspended part never shorter than this (the grasp data's range)
     max_abs_kappa_bar: float = 4.0        # the grasp data's range of curvature
+    end_weight: float = END_WEIGHT        # spline weight of the points near the pattern's ends (process_pattern)
+    start: str = 'tangent'                # 'tangent' (Alg. 4) or 'achievable' (friction-limited, achievable_start.py)
+    friction: float | None = None         # table friction for the 'achievable' start; None: the rod's, else 0.5
+    friction_share: float = 0.5           # share c of the friction the 'achievable' start counts on
 
     def validate(self):
         if self.method not in METHODS:
             raise PlanningError(f'unknown method {self.method!r} (one of {", ".join(METHODS)})')
-        for name in ('step_m', 'speed_m_s', 'max_angular_rate_rad_s', 'min_ls_bar', 'max_abs_kappa_bar'):
+        if self.start not in STARTS:
+            raise PlanningError(f'unknown start {self.start!r} (one of {", ".join(STARTS)})')
+        if self.friction is not None and not (np.isfinite(self.friction) and self.friction > 0):
+            raise PlanningError(f'friction must be positive, got {self.friction}')
+        if not (np.isfinite(self.friction_share) and 0 < self.friction_share <= 1):
+            raise PlanningError(f'friction_share must be in (0, 1], got {self.friction_share}')
+        for name in ('step_m', 'speed_m_s', 'max_angular_rate_rad_s', 'min_ls_bar', 'max_abs_kappa_bar', 'end_weight'):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise PlanningError(f'{name} must be positive, got {v}')
@@ -93,14 +108,22 @@ class PlannedTrajectory:
         return Rotation.from_quat(self.quaternion)
 
 
-def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005) -> ProcessedPattern:
-    """ProcessPattern of Alg. 4: smoothing spline, uniform arc-length resampling, tangent, signed curvature."""
+def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
+    """ProcessPattern of Alg. 4: smoothing spline, uniform arc-length resampling, tangent, signed curvature.
+
+    A smoothing spline is least constrained at its ends, where it spends its allowed distance from the points: with
+    equal weights it leaves the published patterns' first point by 0.3-2 mm and turns their start by 0.4-5 degrees
+    (a spurious end curvature), so the free end would not start at the pattern's first point and the laid shape would
+    turn. The points within END_ZONE_M of each end (by chord length) weigh ``end_weight`` times the others: the
+    spline starts within 0.2 mm of P(0) and within 1 degree of the points' own direction (2.4 on the spiral), the
+    RMS distance to the points unchanged."""
     xy = check_pattern(points_xy)
     # parameterise by chord length so that the spline's parameter is close to arc length
     chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
     k = 3 if len(xy) > 3 else 2
+    w = np.where((chord <= END_ZONE_M) | (chord >= chord[-1] - END_ZONE_M), end_weight, 1.0)
     try:
-        tck, _ = splprep([xy[:, 0], xy[:, 1]], u=chord / chord[-1], k=k, s=len(xy) * smoothing_m ** 2)
+        tck, _ = splprep([xy[:, 0], xy[:, 1]], u=chord / chord[-1], k=k, w=w, s=len(xy) * smoothing_m ** 2)
     except (ValueError, TypeError) as e:
         raise PatternError(f'the pattern cannot be fitted by a smoothing spline: {e}') from None
     u = np.linspace(0.0, 1.0, max(2000, 20 * len(xy)))
@@ -184,7 +207,12 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     settings = settings or PlannerSettings()
     settings.validate()
     t0 = time.perf_counter()
-    pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m)
+    pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
+    if settings.start == 'achievable' and settings.method != 'intuitive':
+        from .achievable_start import achievable_start
+        mu = settings.friction or rod.friction or DEFAULT_FRICTION
+        pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
+                                   settings.max_abs_kappa_bar)
     inputs = node_inputs(pattern, rod, settings)
     t1 = time.perf_counter()
     qbar, rotvec = grasps(inputs, settings.method, progress)

@@ -1,0 +1,95 @@
+"""The friction-limited ('achievable') start of a pattern: the closed-form curvature bound, a pattern within it left
+alone, a circle from its first point (curvature at the free end) replaced by the closest curve within the bound that
+rejoins the circle exactly, and the planner option."""
+import numpy as np
+import pytest
+
+from rod_deploy.planning.achievable_start import (achievable_start, friction_curvature_limit,
+                                                  start_length_needed_m)
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory, process_pattern
+
+LGB, MU = 0.034, 0.5
+ROD = rod_description_from_dict({'length': 0.6, 'radius': 0.002, 'L_gb': LGB, 'friction': MU})
+
+
+def arc(radius_m, turn_rad, n=300):
+    th = np.linspace(0.0, turn_rad, n)
+    return np.column_stack([radius_m * np.sin(th), radius_m * (1.0 - np.cos(th))])
+
+
+def test_curvature_bound_is_the_friction_moment_over_EI():
+    # EI kappa = mu rho A g s^2 / 2 with EI = 2 rho A g L_gb^3
+    s = np.array([0.0, 0.02, 0.05])
+    np.testing.assert_allclose(friction_curvature_limit(s, LGB, MU), MU * s ** 2 / 2 / (2 * LGB ** 3))
+    # the start length needed for kappa_bar is where the bound reaches it
+    kb = 0.47
+    ell = start_length_needed_m(kb, LGB, MU)
+    assert friction_curvature_limit(ell, LGB, MU) * LGB == pytest.approx(kb, rel=1e-12)
+    assert friction_curvature_limit(ell, LGB, MU, share=0.5) * LGB == pytest.approx(kb / 2, rel=1e-12)
+
+
+def test_a_pattern_within_the_bound_is_unchanged():
+    line = process_pattern(np.column_stack([np.linspace(0, 0.3, 50), np.zeros(50)]))
+    assert achievable_start(line, LGB, MU) is line
+
+
+def test_a_curved_start_is_replaced_by_the_closest_holdable_curve():
+    radius = 0.1                                     # kappa_bar = 0.34 from the very first point
+    pattern = process_pattern(arc(radius, 1.2 * np.pi))
+    out = achievable_start(pattern, LGB, MU)
+    kmax = friction_curvature_limit(out.s, LGB, MU)
+    assert np.all(np.abs(out.kappa) <= kmax + 0.01 / LGB)     # within the bound (to the penalty's tolerance)
+    np.testing.assert_allclose(out.xy[0], pattern.xy[0], atol=1e-12)      # the free end stays at P(0)
+    np.testing.assert_allclose(np.linalg.norm(out.tangent, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_array_equal(out.s, pattern.s)
+    # beyond the corrected stretch the pattern itself, and the curve arrives there continuously
+    changed = np.flatnonzero(np.any(out.xy != pattern.xy, axis=1))
+    tail = changed[-1] + 1
+    assert pattern.s[tail] < 0.5 * pattern.length
+    np.testing.assert_array_equal(out.xy[tail:], pattern.xy[tail:])
+    step = np.linalg.norm(np.diff(out.xy, axis=0), axis=1)
+    assert np.all(np.abs(step - pattern.s[1]) < 0.3e-3)
+    assert np.degrees(np.arccos(np.clip(out.tangent[tail - 1] @ pattern.tangent[tail - 1], -1, 1))) < 2.0
+    # closer to the pattern than what the rod lays from a tangent start (the clipped curvature, no correction)
+    dev = np.linalg.norm(out.xy - pattern.xy, axis=1)
+    th = np.concatenate([[0.0], np.cumsum(np.clip(pattern.kappa, -kmax, kmax)[:-1] * np.diff(pattern.s))])
+    laid = np.column_stack([np.cumsum(np.cos(th)), np.cumsum(np.sin(th))]) * pattern.s[1] - [pattern.s[1], 0]
+    dev_laid = np.linalg.norm(laid - pattern.xy, axis=1)
+    assert dev.mean() < 0.2 * dev_laid.mean()
+    assert dev.max() < 5e-3
+
+
+def test_planner_option():
+    pts = arc(0.1, np.pi)
+    plain = plan_trajectory(pts, ROD)
+    plan = plan_trajectory(pts, ROD, PlannerSettings(start='achievable'))
+    assert plain.pattern.xy.shape == plan.pattern.xy.shape
+    np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-12)   # hanging above P(0)
+    np.testing.assert_allclose(plan.pattern.xy[0], pts[0], atol=2e-4)
+    assert np.max(np.abs(plan.pattern.xy - plain.pattern.xy)) > 1e-4          # the start was changed
+    with pytest.raises(PlanningError, match='start'):
+        plan_trajectory(pts, ROD, PlannerSettings(start='curved'))
+    with pytest.raises(PlanningError, match='friction_share'):
+        plan_trajectory(pts, ROD, PlannerSettings(start='achievable', friction_share=0.0))
+
+
+def test_cli_plan_start_option(tmp_path, capsys):
+    import json
+
+    from rod_deploy.cli.main import main as cli
+    from rod_deploy.planning.trajectory_io import read_trajectory_csv
+    pattern = tmp_path / 'arc.txt'
+    np.savetxt(pattern, arc(0.1, np.pi))
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.6\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    outs = {}
+    for start in ('tangent', 'achievable'):
+        out = tmp_path / f'{start}.csv'
+        assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(out), '--start', start]) == 0
+        json.loads(capsys.readouterr().out)
+        outs[start] = read_trajectory_csv(out)
+    a, b = outs['tangent'], outs['achievable']
+    assert len(a[0]) == len(b[0])
+    np.testing.assert_allclose(a[1][0], b[1][0], atol=1e-9)            # the same hanging pose above P(0)
+    assert np.max(np.abs(a[1] - b[1])) > 1e-4                           # a different start
