@@ -185,7 +185,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
     if len(traced) > 1:
-        dist = cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
+        # the skeleton's distance map when the skeleton was taken at full resolution (the same mask)
+        dist = skel_dist if f == 1 else cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
         traced = drop_shadow_strands(traced, colour_full.lab_at, lambda p: _lookup(dist, p),
                                      config.min_colour_separation)
     t3 = time.perf_counter()
