@@ -6,7 +6,9 @@
 * boundary conditions: any DOF can be clamped or given a prescribed motion (a function of time);
 * contact with a rigid table z = 0: a stiff one-sided penalty on node height (the node is a sphere of the rod
   radius) with regularised Coulomb friction, both implicit (their Jacobians enter Newton);
-* the Newton system is banded (bandwidth 10 in the DOF order of the paper's Eq. 1) and solved with LAPACK's banded LU.
+* the Newton system is banded (bandwidth 10 in the DOF order of the paper's Eq. 1) and solved with LAPACK's banded LU;
+  the elastic, contact and friction terms are assembled into its band storage by numba kernels (``der_energy``,
+  ``_contact``), the reference frames transported by one (``reference_frames.transported_frames``).
 
 Units are the caller's: SI, or the dimensionless units of the planning code (EI = 1, L_gb = 1, rho A g = 1/2).
 """
