@@ -7,8 +7,8 @@ A full deployment of the paper's rod #3 (0.89 m, 5 mm edges, dt 0.02 s, gripper 
 along our network planner's trajectory, for each pattern (the paper's, read in place from
 ``../shared/reference/rod_deployment/patterns`` when present, else ours drawn in ``deployment_table.py``). The
 trajectory is planned once here (the published patterns are looked for where ``deployment_table.py`` looks:
-``ROD_DEPLOYMENT_REFERENCE`` overrides; without them the defaults are our spiral, digit 2 and letter S); each simulation runs in its own Python process (``simulate_deployment`` only),
-once with this checkout's ``rod_deploy`` ("after") and once with the ``--baseline`` commit's (default: the last
+``ROD_DEPLOYMENT_REFERENCE`` overrides; without them the defaults are our spiral, digit 2 and letter S); each
+simulation runs in its own Python process (``simulate_deployment`` only), once with this checkout's ``rod_deploy`` ("after") and once with the ``--baseline`` commit's (default: the last
 commit with the numpy simulator), extracted with ``git archive`` into ``out/der_speed_baseline/`` ("before"),
 alternately, so both see the same machine load. Per run: CPU time (user + system of the process during the
 simulation: what the load of other processes does not inflate), wall time, the 1-minute load average, Newton
