@@ -119,3 +119,63 @@ def test_reference_twist_of_a_helix_is_its_geometric_torsion_times_length():
     d1, _ = initial_reference_frames(x)
     t, _ = edge_tangents(x)
     assert np.max(np.abs(reference_twist(d1, t))) < 1e-12
+
+
+@pytest.fixture(scope='module')
+def table_rod():
+    """A bent, twisted rod with a natural curvature, some nodes pressed into the table; its frames transported to a
+    perturbed configuration (the gradient is that of the energy with frames carried from the current state, exact
+    at that state: the DER linearisation), and an older configuration for the friction's slip velocity."""
+    from rod_deploy.physics.der_simulator import DiscreteElasticRod, RodParameters
+    rng = np.random.default_rng(7)
+    N, r = 7, 0.05
+    x = np.c_[np.linspace(0, 1, N + 1), 0.1 * rng.standard_normal(N + 1), np.zeros(N + 1)]
+    x[:, 2] = r + np.where(np.arange(N + 1) % 2 == 0, -0.3, 0.5) * r          # every other node in contact
+    rod = DiscreteElasticRod(x, RodParameters(EI=0.8, EA=40.0, GJ=0.5, rho_A=1.0, radius=r, table=True,
+                                              friction=0.6, friction_velocity=0.05, natural_curvature=(0.7, -0.4)),
+                             theta=0.2 * rng.standard_normal(N))
+    q_old = rod.state.q.copy()
+    rod._commit(q_old + 0.01 * rng.standard_normal(rod.ndof), rod.state.u, 0.0)
+    return rod, rod.state.q.copy(), q_old
+
+
+def test_simulator_band_assembly_matches_finite_differences(table_rod):
+    # the assembled gradient and band Hessian against central and second differences of the energy (frames carried
+    # from the rod's state, as in a Newton iteration)
+    rod, q, _ = table_rod
+    E, g, H = rod.elastic(q)
+    n, h = len(q), 1e-6
+    I = np.eye(n)
+    fd_g = np.array([(rod.elastic(q + h * I[i], False)[0] - rod.elastic(q - h * I[i], False)[0]) / (2 * h)
+                     for i in range(n)])
+    assert np.max(np.abs(g - fd_g)) < 1e-7 * np.max(np.abs(g))
+    A = H.to_dense()
+    h = 1e-4
+    En = lambda v: rod.elastic(v, False)[0]  # noqa: E731
+    fd_H = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            fd_H[i, j] = fd_H[j, i] = (En(q + h * I[i] + h * I[j]) - En(q + h * I[i] - h * I[j])
+                                       - En(q - h * I[i] + h * I[j]) + En(q - h * I[i] - h * I[j])) / (4 * h * h)
+    assert np.max(np.abs(A - fd_H)) < 2e-5 * np.max(np.abs(A))
+    assert np.max(np.abs(A - A.T)) < 1e-10 * np.max(np.abs(A))
+
+
+def test_contact_and_friction_stiffness_match_finite_differences(table_rod):
+    rod, q, q_old = table_rod
+    dt = 0.1
+    Ec, f, Hc = rod.contact(q, q_old, dt)
+    assert Ec > 0 and np.count_nonzero(f) > 0
+    n, h = len(q), 1e-7
+    I = np.eye(n)
+    fd_K = -np.column_stack([(rod.contact(q + h * I[i], q_old, dt, False)[1]
+                              - rod.contact(q - h * I[i], q_old, dt, False)[1]) / (2 * h) for i in range(n)])
+    K = Hc.to_dense()
+    assert np.max(np.abs(K - fd_K)) < 1e-6 * np.max(np.abs(K))
+    fd_f = -np.array([(rod.contact(q + h * I[i], hessian=False)[0] - rod.contact(q - h * I[i], hessian=False)[0])
+                      / (2 * h) for i in range(n)])                           # the normal force is -dE/dq
+    assert np.max(np.abs(rod.contact(q, hessian=False)[1] - fd_f)) < 1e-6 * np.max(np.abs(fd_f))
+    # friction opposes the slip velocity of every node in contact
+    v = (q - q_old) / dt
+    for i in np.flatnonzero(q[2::4] < rod.contact_radius):
+        assert np.dot(f[4 * i:4 * i + 2], v[4 * i:4 * i + 2]) < 0

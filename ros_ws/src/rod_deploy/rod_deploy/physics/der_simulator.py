@@ -6,19 +6,22 @@
 * boundary conditions: any DOF can be clamped or given a prescribed motion (a function of time);
 * contact with a rigid table z = 0: a stiff one-sided penalty on node height (the node is a sphere of the rod
   radius) with regularised Coulomb friction, both implicit (their Jacobians enter Newton);
-* the Newton system is banded (bandwidth 10 in the DOF order of the paper's Eq. 1) and solved with LAPACK's banded LU.
+* the Newton system is banded (bandwidth 10 in the DOF order of the paper's Eq. 1) and solved with LAPACK's banded LU;
+  the elastic, contact and friction terms are assembled into its band storage by numba kernels (``der_energy``,
+  ``_contact``), the reference frames transported by one (``reference_frames.transported_frames``).
 
 Units are the caller's: SI, or the dimensionless units of the planning code (EI = 1, L_gb = 1, rho A g = 1/2).
 """
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_banded
+from numba import njit
+from scipy.linalg import LinAlgError
+from scipy.linalg.lapack import dgbsv
 
 from . import der_energy as de
-from .reference_frames import edge_tangents, initial_reference_frames, reference_twist, time_parallel_transport
-
-BAND = 10
+from .der_energy import BAND
+from .reference_frames import edge_tangents, initial_reference_frames, reference_twist, transported_frames
 
 
 @dataclass
@@ -57,32 +60,63 @@ def rest_curvatures(natural_curvature, voronoi_lengths):
     return (2.0 * np.tan(0.5 * phi) / np.linalg.norm(k))[:, None] * k[None, :]
 
 
+@njit(cache=True)
+def _fix_band(ab, idx):
+    """Replace rows and columns idx of a band-stored matrix by the identity."""
+    n = ab.shape[1]
+    for i in idx:
+        for k in range(2 * BAND + 1):
+            ab[k, i] = 0.0                                 # column i
+            j = i - (k - BAND)                             # row i: entry (i, j) lives at ab[BAND + i - j, j]
+            if 0 <= j < n:
+                ab[k, j] = 0.0
+        ab[BAND, i] = 1.0
+
+
+@njit(cache=True)
+def _contact(q, q_old, dt, radius, kc, mu, eps, friction, hessian, force, ab):
+    """Table contact of every node (penalty on z < radius) and regularised Coulomb friction at the velocity
+    (x - x_old) / dt: energy returned, force added to ``force``, stiffness -dF/dq added to ``ab`` (band storage)."""
+    energy = 0.0
+    for i in range(len(q) // 4 + 1):
+        o = 4 * i
+        pen = radius - q[o + 2]
+        if not pen > 0:
+            continue
+        fn = kc * pen
+        energy += 0.5 * kc * pen * pen
+        force[o + 2] += fn
+        if hessian:
+            ab[BAND, o + 2] += kc
+        if friction:
+            v0, v1 = (q[o] - q_old[o]) / dt, (q[o + 1] - q_old[o + 1]) / dt
+            sv = np.sqrt(v0 * v0 + v1 * v1 + eps * eps)
+            phi = (v0 / sv, v1 / sv)
+            force[o] += -mu * fn * phi[0]
+            force[o + 1] += -mu * fn * phi[1]
+            if hessian:
+                v = (v0, v1)
+                for a in range(2):
+                    for b in range(2):
+                        Dphi = (1.0 if a == b else 0.0) / sv - v[a] * v[b] / sv ** 3
+                        ab[BAND + a - b, o + b] += mu * fn * Dphi / dt
+                    ab[BAND + a - 2, o + 2] += -mu * kc * phi[a]
+    return energy
+
+
 class _Banded:
-    """Scatter per-element blocks into LAPACK band storage (l = u = BAND)."""
+    """A (4N+3)-square matrix of half-bandwidth BAND in LAPACK band storage: entry (i, j) at ab[BAND + i - j, j]."""
 
     def __init__(self, n):
         self.n = n
         self.ab = np.zeros((2 * BAND + 1, n))
-
-    def add_blocks(self, dofs, blocks):
-        rows = dofs[:, :, None]
-        cols = dofs[:, None, :]
-        rr = np.broadcast_to(rows, blocks.shape)
-        cc = np.broadcast_to(cols, blocks.shape)
-        np.add.at(self.ab, (BAND + rr - cc, cc), blocks)
 
     def add_diagonal(self, dofs, values):
         np.add.at(self.ab, (BAND, dofs), values)
 
     def fix(self, fixed):
         """Replace fixed rows and columns by the identity."""
-        idx = np.flatnonzero(fixed)
-        self.ab[:, idx] = 0.0                              # columns
-        for k in range(-BAND, BAND + 1):                   # rows: entry (i, i - k) lives at ab[BAND + k, i - k]
-            j = idx - k
-            ok = (j >= 0) & (j < self.n)
-            self.ab[BAND + k, j[ok]] = 0.0
-        self.ab[BAND, idx] = 1.0
+        _fix_band(self.ab, np.flatnonzero(fixed))
 
     def to_dense(self):
         A = np.zeros((self.n, self.n))
@@ -92,7 +126,15 @@ class _Banded:
         return A
 
     def solve(self, rhs):
-        return solve_banded((BAND, BAND), self.ab, rhs, check_finite=False)
+        """LAPACK's banded LU (gbsv, as scipy's solve_banded calls it; the matrix is kept)."""
+        lu = np.zeros((3 * BAND + 1, self.n))
+        lu[BAND:] = self.ab
+        _, _, x, info = dgbsv(BAND, BAND, lu, rhs, overwrite_ab=True)
+        if info > 0:
+            raise LinAlgError('singular matrix')
+        if info < 0:
+            raise ValueError(f'illegal value in {-info}-th argument of internal gbsv')
+        return x
 
 
 @dataclass
@@ -137,9 +179,11 @@ class DiscreteElasticRod:
         self.node_mass = node_m
         self.fixed = np.zeros(self.ndof, bool)
         self._prescribed = {}          # dof index array -> callable(t) giving values
-        self._stencil = de.stencil_dofs(self.n_edges)
         self.kappa_rest = rest_curvatures(params.natural_curvature, self.voronoi)
-        self._stretch = de.stretching_dofs(self.n_edges)
+        self._ks = np.full(self.n_edges, float(params.EA))      # per element, as the compiled kernel takes them
+        self._kappa_rest = (np.zeros((self.n_edges - 1, 2)) if self.kappa_rest is None
+                            else np.ascontiguousarray(self.kappa_rest, float))
+        self._no_band = np.zeros((1, 1))
         g = np.asarray(params.gravity, float)
         self.gravity_force = np.zeros(self.ndof)
         self.gravity_force[de.node_dofs(len(x))] = node_m[:, None] * g[None, :]
@@ -182,55 +226,33 @@ class DiscreteElasticRod:
 
     # --------------------------------------------------------------------------------------- forces, Hessian
     def _frames(self, q):
-        t, _ = edge_tangents(de.positions(q))
-        d1, d2 = time_parallel_transport(self.state.d1, self.state.tangents, t)
-        return d1, d2, t, reference_twist(d1, t, self.state.ref_twist)
+        s = self.state
+        return transported_frames(q, s.d1, s.tangents, s.ref_twist)
 
     def elastic(self, q, hessian=True):
         """Elastic energy, gradient and (banded) Hessian at q (frames transported from the current state)."""
-        p = self.params
         d1, d2, _, rt = self._frames(q)
-        Es, gs, Hs = de.stretching(q, self.rest_lengths, p.EA, hessian)
-        Eb, gb, Hb = de.bending(q, d1, d2, self.voronoi, p.EI, self.kappa_rest, hessian)
-        Et, gt, Ht = de.twisting(q, d1, d2, rt, self.voronoi, p.GJ, None, hessian)
-        H = None
-        if hessian:
-            H = _Banded(self.ndof)
-            H.add_blocks(self._stretch, Hs)
-            H.add_blocks(self._stencil, Hb + Ht)
-        return Es + Eb + Et, gs + gb + gt, H
+        H = _Banded(self.ndof) if hessian else None
+        g = np.zeros(self.ndof)
+        p = self.params          # rest and Voronoi lengths may be set after construction (statics, optimal_grasp)
+        E = de.elastic_banded(q, d1, d2, rt, self.rest_lengths, self._ks, p.EI / self.voronoi, p.GJ / self.voronoi,
+                              self._kappa_rest, hessian, g, H.ab if hessian else self._no_band)
+        return E, g, H
 
-    def contact(self, q, q_old=None, dt=None, hessian=True):
-        """Table contact (penalty) and friction: potential energy, force and banded stiffness contributions."""
+    def contact(self, q, q_old=None, dt=None, hessian=True, H=None):
+        """Table contact (penalty) and friction: potential energy, force and banded stiffness contributions (added
+        into ``H`` when given, which is then returned)."""
         if not self.params.table:
             return 0.0, np.zeros(self.ndof), None
-        nd = de.node_dofs(self.n_edges + 1)
-        z = q[nd[:, 2]]
-        pen = self.contact_radius - z
-        act = pen > 0
-        kc = self.contact_stiffness
-        fn = np.where(act, kc * pen, 0.0)
-        energy = 0.5 * kc * np.sum(pen[act] ** 2)
         force = np.zeros(self.ndof)
-        force[nd[:, 2]] = fn
-        stiff = np.zeros((len(z), 3, 3))
-        stiff[:, 2, 2] = np.where(act, kc, 0.0)       # -dF/dq
-        mu = self.params.friction
-        if mu > 0 and q_old is not None and np.any(act):
-            v = (q[nd[:, :2]] - q_old[nd[:, :2]]) / dt
-            eps = self.params.friction_velocity
-            sv = np.sqrt(np.sum(v ** 2, axis=1) + eps ** 2)
-            phi = v / sv[:, None]
-            ff = -mu * fn[:, None] * phi
-            force[nd[:, :2]] += ff
-            Dphi = (np.eye(2)[None] / sv[:, None, None] - v[:, :, None] * v[:, None, :] / sv[:, None, None] ** 3)
-            stiff[:, :2, :2] += mu * fn[:, None, None] * Dphi / dt
-            stiff[:, :2, 2] += -mu * np.where(act, kc, 0.0)[:, None] * phi
-        H = None
-        if hessian:
+        if hessian and H is None:
             H = _Banded(self.ndof)
-            H.add_blocks(nd, stiff)
-        return energy, force, H
+        mu = self.params.friction
+        friction = mu > 0 and q_old is not None
+        energy = _contact(q, q if q_old is None else q_old, 1.0 if dt is None else dt, self.contact_radius,
+                          self.contact_stiffness, mu, self.params.friction_velocity, friction, hessian, force,
+                          H.ab if hessian else self._no_band)
+        return energy, force, (H if hessian else None)
 
     def reaction_forces(self, q=None):
         """Forces the supports exert on the fixed DOFs in static equilibrium: grad E - external force."""
@@ -269,13 +291,11 @@ class DiscreteElasticRod:
 
         def residual(qq, with_h):
             _, g, H = self.elastic(qq, with_h)
-            _, fc, Hc = self.contact(qq, q0, dt, with_h)
+            _, fc, _ = self.contact(qq, q0, dt, with_h, H)
             r = M / dt * ((qq - q0) / dt - u0) + damp * (qq - q0) / dt + g - self.gravity_force - fc
             r[self.fixed] = 0.0
             if with_h:
-                if Hc is not None:
-                    H.ab += Hc.ab
-                H.add_diagonal(np.arange(self.ndof), M / dt ** 2 + damp / dt)
+                H.ab[BAND] += M / dt ** 2 + damp / dt
                 H.fix(self.fixed)
             return r, H
 
