@@ -104,9 +104,11 @@ def zhang_suen_thinning(mask: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _delete_pass(flat, offsets, boundary, n, listed, deleted, table, bit):
-    """One parallel pass: delete the listed pixels whose neighbourhood has ``bit`` in ``table``, then
-    update the boundary list; returns (new list length, number deleted)."""
+    """One parallel pass: delete the listed pixels whose neighbourhood has ``bit`` in ``table`` (all
+    decided on the image before the pass), then update the boundary list; returns (new list length,
+    number deleted)."""
     k = 0
+    m = 0
     for i in range(n):
         p = boundary[i]
         code = 0
@@ -115,19 +117,13 @@ def _delete_pass(flat, offsets, boundary, n, listed, deleted, table, bit):
         if table[code] & bit:
             deleted[k] = p
             k += 1
-    if k == 0:
-        return n, 0
-    for j in range(k):
-        flat[deleted[j]] = 0
-    m = 0
-    for i in range(n):                  # keep the boundary pixels still there ...
-        p = boundary[i]
-        if flat[p]:
+            listed[p] = 0
+        else:                           # kept: stays on the list (m <= i, so the list is compacted in place)
             boundary[m] = p
             m += 1
-        else:
-            listed[p] = 0
-    for j in range(k):                  # ... and add the object pixels the deletions exposed
+    for j in range(k):
+        flat[deleted[j]] = 0
+    for j in range(k):                  # add the object pixels the deletions exposed
         p = deleted[j]
         for o in offsets:
             q = p + o
