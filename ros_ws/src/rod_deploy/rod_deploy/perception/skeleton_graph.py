@@ -1,10 +1,9 @@
 """Skeleton graph: a binary mask's skeleton as ends, junctions and the pixel chains between them.
 
-The skeleton comes from Zhang-Suen thinning (:mod:`.thinning`, the same skeleton as scikit-image's
-``skeletonize``, compiled). Every skeleton
-pixel with three or more 8-neighbours is a junction pixel; 8-connected junction pixels form one junction
-node. Removing the junction pixels leaves simple 8-connected chains, the edges, each ordered from one
-node to the other. Chains without any end or junction are closed loops.
+The skeleton comes from Zhang-Suen thinning (:mod:`.thinning`: with Lü and Wang's bound and Holt et al.'s
+staircase removal, compiled). Every skeleton pixel with three or more 8-neighbours is a junction pixel;
+8-connected junction pixels form one junction node. Removing the junction pixels leaves simple 8-connected
+chains, the edges, each ordered from one node to the other. Chains without any end or junction are closed loops.
 
 Units are pixels; points are (row, col) floats, integer values at pixel centres.
 Then :func:`prune_spurs` removes the short end branches that thinning leaves at flat ends and on boundary
@@ -99,8 +98,8 @@ class SkeletonGraph:
 
 
 def skeleton_of(mask: np.ndarray) -> np.ndarray:
-    """Skeleton (bool) of a binary mask by Zhang-Suen thinning (:func:`.thinning.zhang_suen_thinning`,
-    identical to ``skimage.morphology.skeletonize``), of the mask's bounding box."""
+    """Skeleton (bool) of a binary mask by Zhang-Suen thinning (:func:`.thinning.zhang_suen_thinning`), of the
+    mask's bounding box."""
     mask = np.asarray(mask, dtype=bool)
     out = np.zeros(mask.shape, dtype=bool)
     rows = np.flatnonzero(mask.any(axis=1))

@@ -35,9 +35,9 @@ the same strokes within a few pixels (mostly at the ends); ``test_perception_thi
 
 What is faster: an object pixel with no background neighbour is never deleted, so each pass visits only
 a list of the pixels on the object's boundary (found once by a 3 x 3 erosion, then kept up to date from the
-neighbours of the deleted pixels) instead of the whole image, in compiled code. Numba compiles the kernel once and caches it beside this
-module (``cache=True``); the first call of a new install compiles it (~2.5 s on a loaded 2-core machine),
-later processes load it from the cache.
+neighbours of the deleted pixels) instead of the whole image, in compiled code. Numba compiles the kernel
+once and caches it beside this module (``cache=True``); the first call of a new install compiles it (~2.5 s
+on a loaded 2-core machine), later processes load it from the cache.
 """
 from __future__ import annotations
 
