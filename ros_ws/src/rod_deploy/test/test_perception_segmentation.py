@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from rod_deploy.perception.segmentation import SegmentationConfig, SegmentationError, segment
+from rod_deploy.perception.segmentation import SegmentationConfig, SegmentationError, foreground_evidence, segment
 from rod_deploy.perception.synthetic import draw_strokes, example_curves, stroke_coverage
 
 SHAPE = (300, 400)
@@ -49,3 +49,17 @@ def test_no_object_is_a_clear_error(image, message):
 def test_config_is_validated():
     with pytest.raises(ValueError, match='method'):
         SegmentationConfig(method='magic')
+
+
+def test_foreground_evidence_is_the_largest_channel_difference():
+    rng = np.random.default_rng(3)
+    bgr = rng.integers(0, 256, (31, 47, 3), dtype=np.uint8)
+    image_background = rng.integers(0, 256, (31, 47, 3), dtype=np.uint8)
+    diff_image = bgr.astype(int) - image_background.astype(int)
+    colour = (12.4, 200.6, 99.5)                      # rounded to (12, 201, 100), as Python rounds
+    diff_colour = bgr.astype(int) - np.array([12, 201, 100])
+    for background, diff in ((image_background, diff_image), (colour, diff_colour)):
+        for method, expected in (('contrast', np.abs(diff)), ('dark', -diff), ('bright', diff)):
+            s = foreground_evidence(bgr, background, method)
+            assert s.dtype == np.uint8 and s.shape == bgr.shape[:2]
+            np.testing.assert_array_equal(s, np.clip(expected.max(axis=2), 0, 255))

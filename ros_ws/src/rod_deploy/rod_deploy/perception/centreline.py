@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numba import njit
 from scipy.ndimage import gaussian_filter1d
 
 
@@ -91,46 +92,6 @@ def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray,
     return prof, offsets
 
 
-def level_crossings(profiles: np.ndarray, offsets: np.ndarray, fraction: float, floor: float,
-                    core_px: float, peak: np.ndarray | None = None):
-    """Sub-pixel offsets of the nearest crossings, left and right of the path, of ``fraction`` of each
-    profile's peak within ``core_px`` of the path (at least ``floor``); nan where there is none.
-    ``peak``: that peak per profile, if already known."""
-    k = profiles.shape[1]
-    c = k // 2
-    if peak is None:
-        peak = _core_peak(profiles, offsets, core_px)
-    level = np.maximum(fraction * peak, floor)
-    below = profiles < level[:, None]
-    idx = np.arange(len(profiles))
-    left_below = below[:, c::-1]                             # from the path outwards to the left
-    dl = np.argmax(left_below, axis=1)
-    right_below = below[:, c:]
-    dr = np.argmax(right_below, axis=1)
-    valid = ~below[:, c] & left_below[idx, dl] & right_below[idx, dr]     # (argmax of no True: 0)
-    jl = c - dl                                              # last index <= c below the level
-    jr = c + dr                                              # first index >= c below the level
-    step = offsets[1] - offsets[0]
-
-    def interp(j_lo, j_hi):
-        p_lo, p_hi = profiles[idx, j_lo], profiles[idx, j_hi]
-        denom = p_hi - p_lo
-        denom[np.abs(denom) < 1e-6] = 1e-6
-        return offsets[j_lo] + step * (level - p_lo) / denom
-
-    o_l = interp(jl, np.minimum(jl + 1, k - 1))
-    o_r = interp(np.maximum(jr - 1, 0), jr)
-    o_l[~valid] = np.nan
-    o_r[~valid] = np.nan
-    return o_l, o_r
-
-
-def _core_peak(profiles: np.ndarray, offsets: np.ndarray, core_px: float) -> np.ndarray:
-    """Maximum of each profile within ``core_px`` of the path (offsets ascending, so a slice)."""
-    core = np.flatnonzero(np.abs(offsets) <= core_px)
-    return profiles[:, core[0]:core[-1] + 1].max(axis=1)
-
-
 def _parabolic_peak(g: np.ndarray, j: np.ndarray) -> np.ndarray:
     """Sub-sample offset of the maximum of each row of ``g`` near index ``j`` (parabola through 3); the
     same for the minimum (``-g`` gives exactly the same result)."""
@@ -148,27 +109,120 @@ def edge_positions(profiles: np.ndarray, offsets: np.ndarray, floor: float, core
     """Sub-pixel offsets of the left and right edges of the object in each profile: the points of
     steepest evidence change (the physical boundary for a flat ink stroke, whose half-maximum it is, and
     for a shaded round rod, whose dim flanks a fixed fraction of the peak would cut off), searched between
-    the crossings of 15 % and 60 % of the peak. nan where an edge is not found."""
-    peak = _core_peak(profiles, offsets, core_px)
-    out_l, out_r = level_crossings(profiles, offsets, 0.15, 0.5 * floor, core_px, peak)
-    in_l, in_r = level_crossings(profiles, offsets, 0.6, floor, core_px, peak)
-    g = np.gradient(profiles, axis=1)
-    step = offsets[1] - offsets[0]
-    # search windows [lo, hi) of offset indices: from one step outside the outer crossing to one step
-    # inside the inner one (nan: empty or open-ended, and then the row is dropped anyway)
-    lo_l, hi_l = offsets.searchsorted(out_l - step, 'left'), offsets.searchsorted(in_l + step, 'right')
-    lo_r, hi_r = offsets.searchsorted(in_r - step, 'left'), offsets.searchsorted(out_r + step, 'right')
-    j = np.arange(len(offsets), dtype=np.int32)
-    win_l = (j >= lo_l.astype(np.int32)[:, None]) & (j < hi_l.astype(np.int32)[:, None])
-    win_r = (j >= lo_r.astype(np.int32)[:, None]) & (j < hi_r.astype(np.int32)[:, None])
-    jl = np.argmax(np.where(win_l, g, -np.inf), axis=1)      # steepest rise on the left
-    jr = np.argmin(np.where(win_r, g, np.inf), axis=1)       # steepest fall on the right
-    e_l = offsets[jl] + step * _parabolic_peak(g, jl)
-    e_r = offsets[jr] + step * _parabolic_peak(g, jr)
-    bad = ~(np.isfinite(out_l) & np.isfinite(in_l) & (lo_l < hi_l) & (lo_r < hi_r))
-    e_l[bad] = np.nan
-    e_r[bad] = np.nan
+    the crossings of 15 % and 60 % of the peak (the profile's maximum within ``core_px`` of the path; the
+    levels at least ``floor`` / 2 and ``floor``). nan where an edge is not found. ``profiles``: float32
+    (as :func:`edge_profiles` gives them), compiled, one pass per profile."""
+    profiles = np.ascontiguousarray(profiles, dtype=np.float32)
+    offsets = np.ascontiguousarray(offsets, dtype=np.float64)
+    core = np.flatnonzero(np.abs(offsets) <= core_px)
+    e_l, e_r = np.empty(len(profiles)), np.empty(len(profiles))
+    _edge_positions(profiles, offsets, float(floor), int(core[0]), int(core[-1]), e_l, e_r)
     return e_l, e_r
+
+
+@njit(cache=True, nogil=True)
+def _edge_positions(profiles, offsets, floor, core_first, core_last, e_l, e_r):
+    """For each profile p: its peak over [core_first, core_last]; the nearest crossings, left and right of
+    the centre sample, of the levels 15 % (at least floor / 2) and 60 % (at least floor) of it; the
+    steepest rise of p (central differences) from one step outside the outer crossing to one step inside
+    the inner one on the left, the steepest fall likewise on the right, refined by a parabola. float32
+    arithmetic where the profiles are float32, float64 for offsets, as numpy does it."""
+    n, k = profiles.shape
+    c = k // 2
+    step = offsets[1] - offsets[0]
+    outer_floor, inner_floor = np.float32(0.5 * floor), np.float32(floor)
+    for i in range(n):
+        p = profiles[i]
+        peak = p[core_first]
+        for j in range(core_first + 1, core_last + 1):
+            peak = max(peak, p[j])
+        out_l, out_r = _level_crossings(p, offsets, max(np.float32(0.15) * peak, outer_floor), c, step)
+        in_l, in_r = _level_crossings(p, offsets, max(np.float32(0.6) * peak, inner_floor), c, step)
+        lo_l, hi_l = _search(offsets, out_l - step, False), _search(offsets, in_l + step, True)
+        lo_r, hi_r = _search(offsets, in_r - step, False), _search(offsets, out_r + step, True)
+        if not (np.isfinite(out_l) and np.isfinite(in_l) and lo_l < hi_l and lo_r < hi_r):
+            e_l[i] = np.nan
+            e_r[i] = np.nan
+            continue
+        jl, best = lo_l, _gradient(p, lo_l)
+        for j in range(lo_l + 1, hi_l):                 # steepest rise on the left (first of equals)
+            g = _gradient(p, j)
+            if g > best:
+                jl, best = j, g
+        jr, best = lo_r, _gradient(p, lo_r)
+        for j in range(lo_r + 1, hi_r):                 # steepest fall on the right
+            g = _gradient(p, j)
+            if g < best:
+                jr, best = j, g
+        e_l[i] = offsets[jl] + step * _parabola_vertex(p, jl)
+        e_r[i] = offsets[jr] + step * _parabola_vertex(p, jr)
+
+
+@njit(cache=True, nogil=True)
+def _level_crossings(p, offsets, level, c, step):
+    """Sub-pixel offsets of the nearest crossings of ``level`` left and right of sample ``c`` (linear
+    interpolation); nan, nan if p[c] is below it or either side never falls below it."""
+    k = p.size
+    jl, jr = -1, -1
+    if not p[c] < level:
+        for j in range(c, -1, -1):
+            if p[j] < level:
+                jl = j
+                break
+        for j in range(c, k):
+            if p[j] < level:
+                jr = j
+                break
+    if jl < 0 or jr < 0:
+        return np.nan, np.nan
+    tiny = np.float32(1e-6)
+    above = min(jl + 1, k - 1)
+    denom = p[above] - p[jl]
+    if abs(denom) < tiny:
+        denom = tiny
+    o_l = offsets[jl] + step * (level - p[jl]) / denom
+    inside = max(jr - 1, 0)
+    denom = p[jr] - p[inside]
+    if abs(denom) < tiny:
+        denom = tiny
+    o_r = offsets[inside] + step * (level - p[inside]) / denom
+    return o_l, o_r
+
+
+@njit(cache=True, nogil=True)
+def _search(offsets, value, right):
+    """``np.searchsorted(offsets, value, 'right' if right else 'left')`` (nan: past the end)."""
+    if np.isnan(value):
+        return offsets.size
+    for j in range(offsets.size):
+        if offsets[j] > value if right else offsets[j] >= value:
+            return j
+    return offsets.size
+
+
+@njit(cache=True, nogil=True)
+def _gradient(p, j):
+    """``np.gradient(p)[j]``: central difference, one-sided at the ends."""
+    if j == 0:
+        return p[1] - p[0]
+    if j == p.size - 1:
+        return p[j] - p[j - 1]
+    return (p[j + 1] - p[j - 1]) * np.float32(0.5)
+
+
+@njit(cache=True, nogil=True)
+def _parabola_vertex(p, j):
+    """:func:`_parabolic_peak` of the gradient of ``p`` at ``j`` (same float32 arithmetic)."""
+    k = p.size
+    a = _gradient(p, min(max(j - 1, 0), k - 1))
+    b = _gradient(p, j)
+    c = _gradient(p, min(max(j + 1, 0), k - 1))
+    denom = a - (b + b) + c
+    if abs(denom) > np.float32(1e-9):
+        d = np.float32(0.5) * (a - c) / denom
+    else:
+        d = np.float32(0.0)
+    return min(max(d, np.float32(-0.5)), np.float32(0.5))
 
 
 def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_px: float,

@@ -4,7 +4,7 @@ sub-pixel refinement.
  1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w (replaced by
     the mask's width on the skeleton's long chains when that is ``width_mismatch`` times larger: specks of
     a textured table bias the segmentation's 2 area / perimeter low);
- 2. skeleton (``skimage.morphology.skeletonize``; of the mask at half resolution when strokes are at
+ 2. skeleton (Zhang-Suen thinning, :mod:`.thinning`; of the mask at half resolution when strokes are at
     least ``half_resolution_min_width_px`` wide) and its graph (:mod:`.skeleton_graph`); spurs shorter than
     ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
     objects whose centreline evidence has a median below the segmentation threshold (texture blobs that
@@ -133,14 +133,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     t1 = time.perf_counter()
     timings['segmentation'] = (t1 - t0) * 1e3
 
-    # skeleton at half resolution for wide strokes (4x fewer pixels to thin and walk; the centreline is
-    # refined on the full-resolution evidence afterwards)
-    f = 2 if w >= config.half_resolution_min_width_px else 1
-    mask = seg.mask
-    if f == 2:
-        h2, w2 = mask.shape[0] // 2, mask.shape[1] // 2
-        mask = cv2.resize(mask[:2 * h2, :2 * w2].view(np.uint8) * np.uint8(255), (w2, h2),
-                          interpolation=cv2.INTER_AREA) >= 128
+    mask, f = skeleton_mask(seg, config)
     graph = build_skeleton_graph(skeleton_of(mask))
     skel_dist = cv2.distanceTransform(mask.view(np.uint8), cv2.DIST_L2, 3)
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
@@ -219,6 +212,18 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         d.position = d.position / scale
     timings['total'] = (time.perf_counter() - t0) * 1e3
     return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
+
+
+def skeleton_mask(seg: Segmentation, config: PerceptionConfig = PerceptionConfig()):
+    """(mask to thin, f): the segmentation mask, or for wide strokes (``half_resolution_min_width_px``) the
+    mask at half resolution, f = 2 (4x fewer pixels to thin and walk; the centreline is refined on the
+    full-resolution evidence afterwards)."""
+    if seg.stroke_width_px < config.half_resolution_min_width_px:
+        return seg.mask, 1
+    h2, w2 = seg.mask.shape[0] // 2, seg.mask.shape[1] // 2
+    half = cv2.resize(seg.mask[:2 * h2, :2 * w2].view(np.uint8) * np.uint8(255), (w2, h2),
+                      interpolation=cv2.INTER_AREA) >= 128
+    return half, 2
 
 
 def _centreline_width(graph, dist, f, w, mismatch):

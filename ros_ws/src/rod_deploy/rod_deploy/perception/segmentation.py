@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from numba import njit
 
 METHODS = ('contrast', 'dark', 'bright')
 
@@ -105,27 +106,48 @@ def estimate_background(bgr: np.ndarray, block_px: int = 8, uniform_tolerance: f
 
 
 def foreground_evidence(bgr: np.ndarray, background, method: str) -> np.ndarray:
-    if not isinstance(background, np.ndarray):       # one colour
-        colour = [float(round(v)) for v in background]
-        if method == 'contrast':
-            return _channel_max(cv2.absdiff(bgr, tuple(colour) + (0.0,)))
-        background = np.empty_like(bgr)
-        background[:] = np.array(colour, np.uint8)
-    if method == 'contrast':
-        d = cv2.absdiff(bgr, background)
-    elif method == 'dark':
-        d = cv2.subtract(background, bgr)
-    else:
-        d = cv2.subtract(bgr, background)
-    return _channel_max(d)
+    """Evidence s (uint8): the largest channel difference between ``bgr`` and the ``background`` (an image
+    or one BGR colour): |I - B| ('contrast'), B - I ('dark') or I - B ('bright'), clipped at 0."""
+    bgr = np.ascontiguousarray(bgr)
+    s = np.empty(bgr.shape[:2], np.uint8)
+    polarity = METHODS.index(method)
+    if isinstance(background, np.ndarray):
+        _channel_max_difference(bgr, np.ascontiguousarray(background, dtype=np.uint8), polarity, s)
+        return s
+    # one colour: per channel, a 256-entry table of the difference from it
+    grey = np.arange(256)[:, None] - np.array([round(v) for v in background])[None, :]
+    table = np.abs(grey) if polarity == 0 else np.maximum(-grey if polarity == 1 else grey, 0)
+    _channel_max_table(bgr, np.ascontiguousarray(table, dtype=np.uint8), s)
+    return s
 
 
-def _channel_max(d: np.ndarray) -> np.ndarray:
-    """max(B, G, R) per pixel: a 1x3 dilation along the interleaved rows, read at the G positions
-    (5x faster than three channel slices)."""
-    h, w = d.shape[:2]
-    m = cv2.dilate(d.reshape(h, 3 * w), np.ones((1, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
-    return np.ascontiguousarray(m[:, 1::3])
+@njit(cache=True, nogil=True)
+def _channel_max_difference(bgr, background, polarity, out):
+    """out = max over the channels of |I - B| (polarity 0), B - I (1) or I - B (2), clipped at 0, in one
+    pass (no full-size difference image)."""
+    n = out.size
+    pixels = bgr.reshape(n, 3)
+    back = background.reshape(n, 3)
+    evidence = out.reshape(n)
+    sign = -1 if polarity == 1 else 1
+    for i in range(n):
+        best = 0
+        for k in range(3):
+            d = sign * (np.int32(pixels[i, k]) - np.int32(back[i, k]))
+            if polarity == 0 and d < 0:
+                d = -d
+            best = max(best, d)
+        evidence[i] = best
+
+
+@njit(cache=True, nogil=True)
+def _channel_max_table(bgr, table, out):
+    """out = max over the channels k of table[I_k, k], in one pass."""
+    n = out.size
+    pixels = bgr.reshape(n, 3)
+    evidence = out.reshape(n)
+    for i in range(n):
+        evidence[i] = max(table[pixels[i, 0], 0], table[pixels[i, 1], 1], table[pixels[i, 2], 2])
 
 
 def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()) -> Segmentation:
@@ -142,24 +164,27 @@ def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()
         t_otsu, n_fg, mean_fg, mean_bg = _histogram_split(sub, config.threshold)
     if n_fg == 0 or n_fg == sub.size:
         raise SegmentationError('no stroke or rod found (the image is uniform)')
-    _, coarse = cv2.threshold(s, t_otsu, 255, cv2.THRESH_BINARY)
     if mean_fg - mean_bg < config.min_contrast:
         raise SegmentationError(
             f'no stroke or rod found: object/background contrast {mean_fg - mean_bg:.1f} grey levels '
             f'< {config.min_contrast:g}')
     # rough stroke width from area and perimeter (one erosion): w ~ 2 A / P
+    _, coarse = cv2.threshold(s, t_otsu, 255, cv2.THRESH_BINARY)
     n_fg = int(np.count_nonzero(coarse))
-    eroded = cv2.erode(coarse, np.ones((3, 3), np.uint8))
-    perimeter = max(1, n_fg - int(np.count_nonzero(eroded)))
+    perimeter = max(1, n_fg - int(np.count_nonzero(cv2.erode(coarse, np.ones((3, 3), np.uint8)))))
     width = float(np.clip(2.0 * n_fg / perimeter, 1.0, 0.25 * min(s.shape)))
     k = int(2 * round(width) + 1) | 1
     peak = cv2.dilate(s, np.ones((k, k), np.uint8))
-    # local level per peak value (a 256-entry table: cheaper than the arithmetic on every pixel)
+    # object: s > T, or s at least the local level (edge_fraction of the local peak, at least T / 4) where
+    # that peak is at least 0.6 T; s and the thresholds are integers, so this is one comparison of s with
+    # a 256-entry table of the peak: min(level(peak) if peak >= 0.6 T else never, floor(T) + 1)
     levels = cv2.max(cv2.multiply(np.arange(256, dtype=np.uint8), config.edge_fraction, dtype=cv2.CV_8U),
-                     int(np.ceil(0.25 * t_otsu)))
-    above_level = cv2.compare(s, cv2.LUT(peak, levels), cv2.CMP_GE)
-    _, strong = cv2.threshold(peak, np.ceil(0.6 * t_otsu) - 1, 255, cv2.THRESH_BINARY)     # peak >= 0.6 T
-    mask = cv2.bitwise_or(cv2.bitwise_and(above_level, strong), coarse)
+                     int(np.ceil(0.25 * t_otsu))).ravel().astype(np.int64)
+    levels[np.arange(256) < np.ceil(0.6 * t_otsu)] = 256
+    levels = np.minimum(levels, int(np.floor(t_otsu)) + 1)
+    if levels.max() > 255:
+        raise SegmentationError(f'threshold {t_otsu:g} leaves no object pixel')
+    mask = cv2.compare(s, cv2.LUT(peak, levels.astype(np.uint8)), cv2.CMP_GE)
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     min_area = config.min_area_px if config.min_area_px is not None else int(3 * width * width)
     mask = _clean_components(mask, hole_area=int(width * width), min_area=min_area)

@@ -1,9 +1,9 @@
 """Skeleton graph: a binary mask's skeleton as ends, junctions and the pixel chains between them.
 
-The skeleton comes from ``skimage.morphology.skeletonize`` (Zhang-Suen thinning in 2-D). Every skeleton
-pixel with three or more 8-neighbours is a junction pixel; 8-connected junction pixels form one junction
-node. Removing the junction pixels leaves simple 8-connected chains, the edges, each ordered from one
-node to the other. Chains without any end or junction are closed loops.
+The skeleton comes from Zhang-Suen thinning (:mod:`.thinning`: with Lü and Wang's bound and Holt et al.'s
+staircase removal, compiled). Every skeleton pixel with three or more 8-neighbours is a junction pixel;
+8-connected junction pixels form one junction node. Removing the junction pixels leaves simple 8-connected
+chains, the edges, each ordered from one node to the other. Chains without any end or junction are closed loops.
 
 Units are pixels; points are (row, col) floats, integer values at pixel centres.
 Then :func:`prune_spurs` removes the short end branches that thinning leaves at flat ends and on boundary
@@ -16,7 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from skimage.morphology import skeletonize
+from numba import njit
+
+from rod_deploy.perception.thinning import zhang_suen_thinning
 
 END = 'end'
 JUNCTION = 'junction'
@@ -96,8 +98,8 @@ class SkeletonGraph:
 
 
 def skeleton_of(mask: np.ndarray) -> np.ndarray:
-    """Skeleton (bool) of a binary mask by ``skimage.morphology.skeletonize`` (Zhang-Suen), cropped to the
-    mask's bounding box for speed."""
+    """Skeleton (bool) of a binary mask by Zhang-Suen thinning (:func:`.thinning.zhang_suen_thinning`), of the
+    mask's bounding box."""
     mask = np.asarray(mask, dtype=bool)
     out = np.zeros(mask.shape, dtype=bool)
     rows = np.flatnonzero(mask.any(axis=1))
@@ -105,7 +107,7 @@ def skeleton_of(mask: np.ndarray) -> np.ndarray:
         return out
     cols = np.flatnonzero(mask.any(axis=0))
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    out[r0:r1, c0:c1] = skeletonize(mask[r0:r1, c0:c1])
+    out[r0:r1, c0:c1] = zhang_suen_thinning(mask[r0:r1, c0:c1])
     return out
 
 
@@ -113,7 +115,7 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     """Turn a one-pixel-wide skeleton into a :class:`SkeletonGraph`.
 
     Works on the skeleton pixels and their bounding box only, so the cost grows with the skeleton, not
-    the image; one Python step per pixel orders the chains."""
+    the image; one compiled walk orders the chains."""
     sk = np.asarray(skeleton, dtype=bool)
     shape = sk.shape
     flat = np.flatnonzero(sk)                   # (much faster than np.nonzero on a sparse bool image)
@@ -154,26 +156,19 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     nb_chain = np.where(valid & ~nb_j, nb, -1)
     nb_sorted = np.sort(nb_chain, axis=1)[:, ::-1]                # valid indices first
     n_nb = (nb_chain >= 0).sum(axis=1)
-    first = nb_sorted[:, 0].tolist()
-    second = nb_sorted[:, 1].tolist()
     touched = np.where(nb_j, jl[np.maximum(nb, 0)], -1)
     touch = touched.max(axis=1)                                    # an adjacent junction node (-1: none)
     touch2 = np.where(touched >= 0, touched, np.iinfo(np.int64).max).min(axis=1)
 
-    visited = ~chain
-    for s in np.flatnonzero(chain & (n_nb <= 1)).tolist():
-        if visited[s]:
+    first, second = (np.ascontiguousarray(nb_sorted[:, k]) for k in (0, 1))
+    order, bounds, closed = _walk_chains(first, second, np.flatnonzero(chain & (n_nb <= 1)), ~chain)
+    for k in range(len(closed)):
+        chain_order = order[bounds[k]:bounds[k + 1]]
+        if not closed[k]:
+            _add_chain(graph, chain_order, rows, cols, touch, touch2)
             continue
-        order = _walk(s, first, second)
-        visited[order] = True
-        _add_chain(graph, order, rows, cols, touch, touch2)
-    for s in np.flatnonzero(~visited).tolist():                  # what is left is closed loops
-        if visited[s]:
-            continue
-        order = _walk(s, first, second)
-        visited[order] = True
-        pts = np.stack([rows[order], cols[order]], axis=1).astype(np.float64)
-        if len(order) > 2:
+        pts = np.stack([rows[chain_order], cols[chain_order]], axis=1).astype(np.float64)
+        if len(chain_order) > 2:
             pts = np.vstack([pts, pts[:1]])
         graph.add_edge(pts, -1, -1)
     return graph
@@ -200,20 +195,40 @@ def _cluster(n: int, a: list, b: list):
     return len(first_seen), np.array(labels, dtype=np.int64)
 
 
-def _walk(start, first, second):
-    """Pixel indices along a chain from ``start`` (an end, or any pixel of a closed loop). Chain pixels
-    have at most two chain neighbours (``first``, ``second``; -1: none), so the walk only has to avoid
-    going back, and stops at the chain's end or back at its start."""
-    order = [start]
-    prev, cur = -1, start
-    while True:
-        nxt = first[cur]
-        if nxt == prev:
-            nxt = second[cur]
-        if nxt < 0 or nxt == start:
-            return order
-        order.append(nxt)
-        prev, cur = cur, nxt
+@njit(cache=True, nogil=True)
+def _walk_chains(first, second, ends, visited):
+    """Pixel indices of every chain, walked from each unvisited end in turn, then what is left (closed
+    loops) from its lowest unvisited pixel. Chain pixels have at most two chain neighbours (``first``,
+    ``second``; -1: none), so a walk only has to avoid going back, and stops at the chain's end or back
+    at its start. Returns (indices of all chains one after the other, chain k's slice bounds
+    [bounds[k], bounds[k + 1]), closed flag per chain); ``visited`` is updated."""
+    n = first.size
+    order = np.empty(n, dtype=np.int64)
+    bounds = [0]
+    closed = []
+    m = 0
+    for phase in range(2):
+        starts = ends if phase == 0 else np.arange(n)
+        for start in starts:
+            if visited[start]:
+                continue
+            order[m] = start
+            m += 1
+            visited[start] = True
+            prev, cur = -1, start
+            while True:
+                nxt = first[cur]
+                if nxt == prev:
+                    nxt = second[cur]
+                if nxt < 0 or nxt == start:
+                    break
+                order[m] = nxt
+                m += 1
+                visited[nxt] = True
+                prev, cur = cur, nxt
+            bounds.append(m)
+            closed.append(phase == 1)
+    return order[:m], np.array(bounds), np.array(closed)
 
 
 def _add_chain(graph, order, rows, cols, touch, touch2):
