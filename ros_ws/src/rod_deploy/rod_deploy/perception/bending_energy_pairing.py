@@ -151,8 +151,8 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
         centre = np.mean([graph.nodes[nid].position for nid in nodes], axis=0)
         crossings.append(Crossing(nodes=sorted(node_set), internal_edges=inner, branches=branches, centre=centre,
                                   overlap_px=max((overlaps.get(eid, 0.0) for eid in inner), default=0.0),
-                                  width_px=0.0 if width_at is None else _widest_rod(graph, branches, width_at,
-                                                                                     fit_px)))
+                                  width_px=0.0 if width_at is None or len(branches) < 4
+                                  else _widest_rod(graph, branches, width_at, fit_px)))
     return crossings
 
 
