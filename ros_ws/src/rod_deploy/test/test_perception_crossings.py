@@ -217,3 +217,80 @@ def test_overlay_marks_undecided_crossings():
         ov = draw_overlay(img, objects, [d])
         return int(np.all(ov[label] >= 250, axis=2).sum())
     assert white_in_label(None) >= 10 and white_in_label(0) == 0
+
+
+def _thin_on_thick(over, angle_deg=60.0, widths=(7.0, 14.0), seed=2):
+    """A thin and a thick rod of (nearly) one colour crossing at ``angle_deg``; ``over`` the upper rod's
+    index (0: the thin one)."""
+    t = np.linspace(-180, 180, 361)[:, None]
+    a = np.array([200.0, 260.0]) + t * np.array([np.sin(np.radians(angle_deg)), np.cos(np.radians(angle_deg))])
+    b = np.array([200.0, 260.0]) + t * np.array([0.0, 1.0])
+    keep = lambda c: c[(c[:, 0] > 10) & (c[:, 0] < 390) & (c[:, 1] > 10) & (c[:, 1] < 510)]   # noqa: E731
+    curves = [keep(a), keep(b)]
+    cs = curve_crossings(curves)
+    cs[0].over = over
+    img = render_rod_scene((400, 520), curves, list(widths), [(60, 220, 200), (66, 226, 204)], cs,
+                           background=(120, 110, 130), texture=6.0, seed=seed)
+    return curves, img
+
+
+@pytest.mark.parametrize('over', [0, 1])
+def test_thin_rod_on_a_thick_one_is_never_ordered_wrong(over):
+    """Rods of one colour, 7 and 14 px wide, crossing at 45 degrees: over/under from the occlusion edges
+    must be right or undecided, never wrong (each strand's own width, the footprint window along the
+    other strand, the worst case over the direction tolerance; the rules before them put the thick rod on
+    top of the thin one here)."""
+    curves, img = _thin_on_thick(over, angle_deg=45.0, seed=3)
+    res = perceive(img)
+    assert len(res.objects) == 2
+    (dec,) = [c for c in res.crossings if c.objects[0] != c.objects[1]]
+    if dec.over is not None:
+        truth = curves[over]
+        assert centreline_rms(res.objects[dec.over].points, truth)['rms_px'] < 1.0
+
+
+def test_over_under_from_edges_is_right_at_a_thin_rod_over_a_thick_one():
+    """At 75 degrees, with the thin rod on top, the order is decided, and right."""
+    curves, img = _thin_on_thick(0, angle_deg=75.0)
+    res = perceive(img)
+    (dec,) = [c for c in res.crossings if c.objects[0] != c.objects[1]]
+    assert dec.cue == 'edges' and dec.over is not None
+    assert centreline_rms(res.objects[dec.over].points, curves[0])['rms_px'] < 1.0
+
+
+def test_crossing_anchors_lie_past_the_widest_rod():
+    """At a thin rod crossing a thick one the crossing's width is the thick rod's, and the thin rod's
+    branch anchors lie outside the thick rod (where its skeleton runs straight again)."""
+    import cv2
+    from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
+    from rod_deploy.perception.skeleton_graph import build_skeleton_graph, prune_spurs, skeleton_of
+    mask = np.zeros((300, 300), np.uint8)
+    cv2.line(mask, (20, 150), (280, 150), 1, 15)                     # thick, along row 150
+    cv2.line(mask, (80, 30), (220, 270), 1, 7)                       # thin, about 60 degrees to it
+    graph = build_skeleton_graph(skeleton_of(mask.astype(bool)))
+    prune_spurs(graph, 10.0)
+    dist = cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+    width_at = lambda p: 2.0 * dist[tuple(np.round(p).astype(int).T)]      # noqa: E731
+    crossings = find_crossings(graph, 5.0, 56.0, width_at=width_at, fit_px=12.0)
+    (c,) = [c for c in crossings if len(c.branches) == 4]
+    assert abs(c.width_px - 15.0) <= 2.0
+    pair_crossings(graph, [c], 5.5, 12.0)
+    thin = [b for b in c.branches if abs(b.tangent[0]) > 0.5]         # the thin rod's branches: steep
+    assert len(thin) == 2
+    assert all(abs(b.anchor[0] - 150.0) > 7.5 for b in thin)
+
+
+def test_an_end_running_on_into_another_colour_is_trimmed():
+    """A rod's skeleton running on past its end into a dark texture blob of another colour is cut back;
+    a rod of one colour is left alone."""
+    from rod_deploy.perception.traversal import TracedObject, trim_foreign_ends
+    pts = np.stack([np.full(301, 100.0), np.arange(301.0)], axis=1)
+
+    def colours_at(p):                   # red rod up to column 285, a purple blob beyond
+        out = np.tile([50.0, 40.0], (len(p), 1))
+        out[p[:, 1] > 285] = [15.0, -20.0]
+        return out
+    trimmed = trim_foreign_ends(TracedObject(pts.copy()), colours_at, 8.0, 12.0)
+    assert 283 <= trimmed.points[-1, 1] <= 286 and trimmed.points[0, 1] == 0
+    same = TracedObject(pts.copy())
+    assert trim_foreign_ends(same, lambda p: np.tile([50.0, 40.0], (len(p), 1)), 8.0, 12.0) is same

@@ -4,7 +4,9 @@ A crossing is a cluster of skeleton junctions: one junction where two strands cr
 three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle, or
 several junctions around the overlap of three strands (see :func:`find_crossings`).
 Each branch leaving the cluster gets an anchor a distance ``skip_px`` out along it (beyond the part of the
-skeleton that the junction bends; at a shallow crossing at least ``SPLAY_FRACTION`` of the overlap) and a unit tangent pointing into the crossing. Joining branch i to
+skeleton that the junction bends; at a shallow crossing at least ``SPLAY_FRACTION`` of the overlap; at
+least half the width of the widest rod through the crossing plus 2 px, so that a thin rod's anchors lie
+outside a thick rod under or over it) and a unit tangent pointing into the crossing. Joining branch i to
 branch j by the polyline (a_i - t_i, a_i, a_j, a_j - t_j) costs the discrete bending energy of its two
 interior vertices (discrete elastic rods, Bergou et al. 2008):
 
@@ -57,6 +59,7 @@ class Crossing:
     pairs: list = field(default_factory=list)   # (i, j) indices into branches
     overlap_px: float = 0.0                     # length of the shared chain of a shallow crossing (0: none)
     energy: float = 0.0
+    width_px: float = 0.0                       # the widest rod through the crossing (0: not measured)
 
     def unpaired(self):
         paired = {i for p in self.pairs for i in p}
@@ -147,8 +150,21 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
         branches = [(eid, side) for nid in nodes for eid, side in graph.nodes[nid].edges if eid not in internal]
         centre = np.mean([graph.nodes[nid].position for nid in nodes], axis=0)
         crossings.append(Crossing(nodes=sorted(node_set), internal_edges=inner, branches=branches, centre=centre,
-                                  overlap_px=max((overlaps.get(eid, 0.0) for eid in inner), default=0.0)))
+                                  overlap_px=max((overlaps.get(eid, 0.0) for eid in inner), default=0.0),
+                                  width_px=0.0 if width_at is None or len(branches) < 4
+                                  else _widest_rod(graph, branches, width_at, fit_px)))
     return crossings
+
+
+def _widest_rod(graph, branches, width_at, fit_px):
+    """Width [px] of the widest rod through a crossing: the second largest of its branches' widths (median
+    of ``width_at`` - 1 over the stretch from ``fit_px`` to 3 ``fit_px`` out, past the junction's blob; a rod
+    gives two branches, so one odd branch, a spur or a rod lying alongside, does not count); 0 if fewer
+    than two branches are long enough."""
+    lo, hi = int(np.ceil(fit_px)), int(np.ceil(3 * fit_px)) + 1
+    widths = sorted(float(np.median(width_at(pts[lo:hi]))) - 1.0 for pts in
+                    (graph.branch_points(eid, side) for eid, side in branches) if len(pts) >= lo + 3)
+    return widths[-2] if len(widths) >= 2 else 0.0
 
 
 def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack, min_deg=8.0):
@@ -291,7 +307,9 @@ def attach_branch_geometry(graph: SkeletonGraph, crossings: list, skip_px: float
     for crossing in crossings:
         out = []
         # past the Ys of a long overlap (a shallow crossing) the skeleton splays over a longer stretch
-        skip = max(skip_px, SPLAY_FRACTION * crossing.overlap_px)
+        # and past the widest rod through the crossing (a thin rod on a thick one: the thin rod's skeleton
+        # bends over the thick rod's half width)
+        skip = max(skip_px, SPLAY_FRACTION * crossing.overlap_px, 0.5 * crossing.width_px + 2.0)
         for eid, side in crossing.branches:
             pts = graph.branch_points(eid, side)
             i0, t = branch_geometry(pts, skip, fit_px)

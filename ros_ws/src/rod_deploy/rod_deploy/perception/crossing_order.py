@@ -8,8 +8,11 @@ widths from the overlap, on both sides). The strand whose own colour is nearer i
 3x3 means, which keeps JPEG noise out. When the two strands' colours differ by less than
 ``min_colour_separation`` (e.g. a rod crossing itself) the occlusion edges decide
 (:func:`occlusion_edge_strength`: the upper strand's boundary runs on through the overlap, the lower one's
-is hidden), with confidence |e_a - e_b| / (e_a + e_b); below ``min_edge_confidence`` (or at crossings
-shallower than about 12 degrees) the order is left undecided.
+is hidden), with confidence |e_a - e_b| / (e_a + e_b), each strand with its own width and direction
+(the chord of its pass); the decision must hold with either direction turned by up to
+``tangent_tolerance_rad`` (the chord's error at a thin rod on a thick one), and the confidence is the
+worst case over those directions. Below ``min_edge_confidence`` (or at crossings shallower than about
+12 degrees) the order is left undecided: a wrong order is worse than none.
 Colour confidence = (d_under - d_over) / separation, in [0, 1] for a clean decision.
 """
 from __future__ import annotations
@@ -107,9 +110,12 @@ def _strand_points(points, first, last, centre, width_px):
 
 
 def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
-                     min_colour_separation: float = 12.0, min_edge_confidence: float = 0.05) -> list:
+                     min_colour_separation: float = 12.0, min_edge_confidence: float = 0.05,
+                     width_at=None, tangent_tolerance_rad: float = float(np.radians(8.0))) -> list:
     """Decisions for every pair of passes through the same crossing. ``objects`` are traced objects
-    (``points``, ``passes`` as (crossing id, first, last) index ranges of their connectors)."""
+    (``points``, ``passes`` as (crossing id, first, last) index ranges of their connectors);
+    ``width_at(points)`` (optional) gives the rod width [px] at (row, col) points: each strand's own width
+    (median over its colour points) then sets its occlusion-edge footprint, else ``width_px`` does."""
     by_crossing: dict[int, list] = {}
     for oid, obj in enumerate(objects):
         for cid, i0, i1 in obj.passes:
@@ -132,58 +138,100 @@ def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
     decisions = [_decide_pair(cid, pa, pb, centre, *colours[3 * k:3 * k + 3], min_colour_separation)
                  for k, ((cid, pa, pb), centre) in enumerate(zip(pairs, centres))]
     grey = None
-    for dec, (_, (oa, a0, a1), (ob, b0, b1)) in zip(decisions, pairs):
+    for k, (dec, (_, (oa, a0, a1), (ob, b0, b1))) in enumerate(zip(decisions, pairs)):
         if dec.over is not None:
             continue
         if grey is None:
             grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
-        ta = _tangent_at(objects[oa].points[a0:a1 + 1], dec.position)
-        tb = _tangent_at(objects[ob].points[b0:b1 + 1], dec.position)
+        ta = _chord_direction(objects[oa].points[a0:a1 + 1])
+        tb = _chord_direction(objects[ob].points[b0:b1 + 1])
         if ta is None or tb is None:
             continue
-        ea = occlusion_edge_strength(grey, dec.position, ta, tb, width_px)
-        eb = occlusion_edge_strength(grey, dec.position, tb, ta, width_px)
-        if not (np.isfinite(ea) and np.isfinite(eb)) or ea + eb <= 0:
+        wa, wb = (_strand_width(width_at, point_sets[3 * k + j], width_px) for j in (1, 2))
+        signed = [_edge_contrast(grey, dec.position, ra, rb, wa, wb)
+                  for ra, rb in _perturbed_directions(ta, tb, tangent_tolerance_rad)]
+        if not np.all(np.isfinite(signed)):
             continue
-        conf = abs(ea - eb) / (ea + eb)
+        # the decision must hold for every direction within the tolerance: the confidence is the worst case
+        conf = float(np.min(signed)) if signed[0] > 0 else float(-np.max(signed))
         if conf >= min_edge_confidence:
-            dec.over, dec.confidence, dec.cue = (oa if ea > eb else ob), float(conf), 'edges'
+            dec.over, dec.confidence, dec.cue = (oa if signed[0] > 0 else ob), conf, 'edges'
     return decisions
 
 
-def _tangent_at(points, position):
-    """Unit tangent of a polyline at its point nearest to ``position`` (None if too short)."""
+def _strand_width(width_at, points, width_px):
+    """A strand's own width: the median of ``width_at`` over its colour points, else ``width_px``."""
+    if width_at is None or not len(points):
+        return width_px
+    w = float(np.median(width_at(points)))
+    return w if np.isfinite(w) and w > 0 else width_px
+
+
+def _edge_contrast(grey, centre, ta, tb, wa, wb):
+    """(e_a - e_b) / (e_a + e_b) of the occlusion edge strengths of strands a and b (NaN if unknown)."""
+    ea = occlusion_edge_strength(grey, centre, ta, tb, wa, wb)
+    eb = occlusion_edge_strength(grey, centre, tb, ta, wb, wa)
+    return (ea - eb) / (ea + eb) if np.isfinite(ea) and np.isfinite(eb) and ea + eb > 0 else float('nan')
+
+
+def _rotate(t, angle_rad):
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([c * t[0] - s * t[1], s * t[0] + c * t[1]])
+
+
+def _perturbed_directions(ta, tb, tolerance_rad):
+    """The strands' directions as measured, then each turned by -+ ``tolerance_rad`` (the measured first)."""
+    out = [(ta, tb)]
+    if tolerance_rad > 0:
+        for sgn in (-1.0, 1.0):
+            out += [(_rotate(ta, sgn * tolerance_rad), tb), (ta, _rotate(tb, sgn * tolerance_rad))]
+    return out
+
+
+def _chord_direction(points):
+    """Unit direction of a strand through a crossing: the chord of its pass (anchor to anchor, both outside
+    the overlap; on a curved rod parallel to the tangent halfway), None if too short."""
     if len(points) < 3:
         return None
-    k = int(np.argmin(np.hypot(points[:, 0] - position[0], points[:, 1] - position[1])))
-    d = points[min(k + 2, len(points) - 1)] - points[max(k - 2, 0)]
+    d = points[-1] - points[0]
     n = float(np.linalg.norm(d))
     return d / n if n > 0 else None
 
 
-def occlusion_edge_strength(grey: np.ndarray, centre, t_self, t_other, width_px: float) -> float:
-    """How strongly strand ``self`` shows its own boundary inside the overlap with strand ``other``.
+def occlusion_edge_strength(grey: np.ndarray, centre, t_self, t_other, width_px: float,
+                            other_width_px: float | None = None) -> float:
+    """How strongly strand ``self`` (width ``width_px``) shows its own boundary inside the overlap with
+    strand ``other`` (width ``other_width_px``, default the same).
 
     The upper rod's silhouette runs on across the crossing (against the lower rod, with the shading at its
     rim and the shadow it casts), while the lower rod's boundary stops where the upper rod covers it. For
-    lines parallel to ``t_self`` at offsets 1..1.5 w on each side, within the other strand's footprint
-    (|u| <= 0.5 w / sin(angle), u along ``t_self``), the mean absolute derivative of ``grey`` across
-    ``t_self`` is taken; the strongest line on each side counts, and the two sides are added. NaN where
-    the crossing is too shallow or runs off the image."""
+    lines parallel to ``t_self`` at offsets o from 0.25 w_self - 1 to 0.75 w_self + 1 px on each side (about
+    its own boundary, where the upper strand's silhouette runs on; farther out, the other rod's shading and
+    the ramp of the upper rod make edges of their own), within the other strand's
+    footprint on that line (|u - u_o| <= 0.35 w_other / sin(angle), u along ``t_self``, u_o = o cot(angle)
+    where the other strand's centre line crosses it: at an oblique crossing the footprint slides along
+    the line with the offset, and a window fixed at u = 0 would see the lower rod's own boundary beside
+    the upper rod), the mean absolute derivative of ``grey`` across ``t_self`` is taken; the strongest line
+    on each side counts, and the two sides are added. NaN where the crossing is too shallow or runs off
+    the image."""
     t_self = np.asarray(t_self, float)
-    sin = abs(t_self[0] * t_other[1] - t_self[1] * t_other[0])
+    t_other = np.asarray(t_other, float)
+    other_width_px = width_px if other_width_px is None else other_width_px
+    n = np.array([-t_self[1], t_self[0]])
+    along, across = float(t_other @ t_self), float(t_other @ n)
+    sin = abs(across)
     if sin < 0.2:
         return float('nan')
-    n = np.array([-t_self[1], t_self[0]])
-    half = 0.5 * width_px / sin
+    half = 0.5 * other_width_px / sin
     u = np.linspace(-0.7 * half, 0.7 * half, max(3, int(np.ceil(1.4 * half)) + 1))
-    offsets = np.arange(1.0, np.ceil(1.5 * width_px) + 1.0)
+    offsets = np.arange(np.floor(max(1.0, 0.25 * width_px - 1.0)), np.ceil(0.75 * width_px + 1.0) + 1.0)
     h, w = grey.shape
     total = 0.0
     for side in (1.0, -1.0):
         o = side * offsets
+        u_o = o * along / across                     # the other strand's centre line on the line at offset o
         pts = (np.asarray(centre, float)[None, None, :] + o[:, None, None] * n[None, None, :]
-               + u[None, :, None] * t_self[None, None, :])
+               + (u_o[:, None] + u[None, :])[:, :, None] * t_self[None, None, :])
         plus, minus = pts + 0.75 * n, pts - 0.75 * n
         if (min(plus.min(), minus.min()) < 0 or max(plus[..., 0].max(), minus[..., 0].max()) > h - 1
                 or max(plus[..., 1].max(), minus[..., 1].max()) > w - 1):

@@ -177,15 +177,20 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     if not traced:
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
+    dist = [skel_dist if f == 1 else None]
+
+    def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1), lazily
+        if dist[0] is None:
+            dist[0] = cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
+        return _lookup(dist[0], p)
+
     if len(traced) > 1:
-        # the skeleton's distance map when the skeleton was taken at full resolution (the same mask)
-        dist = skel_dist if f == 1 else cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
-        traced = drop_shadow_strands(traced, colour_full.lab_at, lambda p: _lookup(dist, p),
-                                     config.min_colour_separation)
+        traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
     t3 = time.perf_counter()
     timings['graph'] = (t3 - t2) * 1e3
 
-    decisions = decide_crossings(bgr, traced, w, config.min_colour_separation)
+    decisions = decide_crossings(bgr, traced, w, config.min_colour_separation,
+                                 width_at=lambda p: 2.0 * half_width_at(p) - 1.0)
     t4 = time.perf_counter()
     timings['crossing_order'] = (t4 - t3) * 1e3
 

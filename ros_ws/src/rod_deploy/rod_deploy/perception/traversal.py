@@ -278,7 +278,9 @@ def split_at_colour_changes(objects: list, colours_at, width_px: float, min_sepa
     Colours (``colours_at(points)`` -> (n, 2) CIELAB a*b*) are taken every half width along the path,
     leaving out the passes through crossings, where the upper strand's colour shows. A cut goes where the
     mean colours of the ``4 w`` before and after differ most, if by more than 2.5 ``min_separation``,
-    both pieces are at least ``min_length_px`` long and each is of one colour over 80 % of its length."""
+    both pieces are at least ``min_length_px`` long and each is of one colour over 80 % of its length.
+    Then the ends of every open object are trimmed where they are not of its colour
+    (:func:`trim_foreign_ends`)."""
     out = []
     queue = list(objects)
     splits = 0
@@ -294,7 +296,49 @@ def split_at_colour_changes(objects: list, colours_at, width_px: float, min_sepa
         b = TracedObject(o.points[cut:].copy(), False,
                          [(c, i0 - cut, i1 - cut) for c, i0, i1 in o.passes if i1 > cut and i0 >= cut])
         queue += [a, b]
-    return out
+    return [trim_foreign_ends(o, colours_at, width_px, min_separation) for o in out]
+
+
+def trim_foreign_ends(o, colours_at, width_px: float, min_separation: float, reach_factor: float = 4.0,
+                      foreign_factor: float = 2.5, min_foreign_fraction: float = 0.5):
+    """Cut off an open object's end where it runs on past the rod into something of another colour (a dark
+    texture blob of the table or the rod's own shadow, merged with the rod's end in the mask).
+
+    Within ``reach_factor`` w of each end (and before its first crossing), points are foreign where their
+    CIELAB a*b* (``colours_at``) is farther than ``foreign_factor`` ``min_separation`` from the object's
+    median colour; the end is cut just inside the farthest foreign point beyond which at least
+    ``min_foreign_fraction`` of the stretch to the end is foreign."""
+    if o.closed or len(o.points) < 8:
+        return o
+    pts = o.points
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    reach = reach_factor * width_px
+    if s[-1] < 4 * reach:
+        return o
+    body = np.flatnonzero((s > reach) & (s < s[-1] - reach))[::max(1, int(0.5 * width_px))]
+    first_pass = min((i0 for _, i0, _ in o.passes), default=len(pts))
+    last_pass = max((i1 for _, _, i1 in o.passes), default=-1)
+    head = np.flatnonzero((s <= reach) & (np.arange(len(pts)) < first_pass))
+    tail = np.flatnonzero((s >= s[-1] - reach) & (np.arange(len(pts)) > last_pass))
+    col = colours_at(pts[np.concatenate([body, head, tail])])
+    own = median0(col[:len(body)])
+    foreign = np.linalg.norm(col[len(body):] - own, axis=1) > foreign_factor * min_separation
+    lo, hi = 0, len(pts) - 1
+    fh, ft = foreign[:len(head)], foreign[len(head):]
+    if fh.any():                                        # head: indices from the end inwards
+        frac = np.cumsum(fh) / np.arange(1, len(fh) + 1)
+        k = np.flatnonzero(fh & (frac >= min_foreign_fraction))
+        if len(k):
+            lo = int(head[k[-1]]) + 1
+    if ft.any():
+        ft_rev = ft[::-1]
+        frac = np.cumsum(ft_rev) / np.arange(1, len(ft_rev) + 1)
+        k = np.flatnonzero(ft_rev & (frac >= min_foreign_fraction))
+        if len(k):
+            hi = int(tail[::-1][k[-1]]) - 1
+    if lo == 0 and hi == len(pts) - 1:
+        return o
+    return TracedObject(pts[lo:hi + 1].copy(), False, [(c, i0 - lo, i1 - lo) for c, i0, i1 in o.passes])
 
 
 def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
