@@ -17,6 +17,14 @@ e_mean after the best rotation + translation, Kabsch on the N = 50 resampled poi
 from the pattern's first point, and the angle between the first 3 cm of the deployed curve and of the pattern.
 The deployed shapes are saved (npz) next to the table for plots.
 
+Second round (why curved starts turn): options applied to every run, ``--clamp-nodes K`` (the first K nodes held on
+the planned start all along: a start that carries a moment, ``SimulationSettings.clamp_start_xy``),
+``--exact-length`` (the rod at its own rest length L, ``exact_rest_length``), ``--friction-velocity``, ``--dt``,
+``--gripper-speed``; variants ``achievable`` (the planner's current friction-limited start) and ``remainder`` (the
+paper's remainder, ``with_remainder``: rod laid before P(0), cut off the deployed curve before scoring); and
+``--statics S1,S2,..`` (no time stepping: the DER statics at those contact points against the continuum grasp the
+planner assumed, ``statics_check``; writes ``deployment_statics*.md``).
+
 ``--truncate-m X`` (exploration on a loaded machine): only the first X m of each pattern, laid by a rod X + 0.2 m
 long (the same L_gb and radius), about 4x cheaper than the full 0.9 m deployment.
 """
@@ -48,11 +56,17 @@ VARIANTS = {
     'numeric': (replace(BASE_PLAN, method='numeric'), BASE_SIM),
     'mu1': (BASE_PLAN, replace(BASE_SIM, friction=1.0)),
     'ends': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight), BASE_SIM),
+    # start, both, both_half: their shares now refer to the corrected bound mu w s^2 / 4 (round 1 ran them with the
+    # earlier mu w s^2 / 2: both_half then = achievable now)
     'start': (replace(BASE_PLAN, start='achievable', friction_share=1.0), BASE_SIM),
     'both': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable', friction_share=1.0),
              BASE_SIM),
     'both_half': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable',
                           friction_share=0.5), BASE_SIM),
+    # the planner's current friction-limited start (default share; since the bound's correction, share 1 of
+    # mu w s^2 / 4 = the plans of both_half before it)
+    'achievable': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight, start='achievable',
+                           friction_share=PlannerSettings().friction_share), BASE_SIM),
     # the paper's remainder (Sec. 6.4.1): a lead of rod laid before P(0), curvature growing within the friction
     # bound (with_remainder), not scored; then the tangent start
     'remainder': (replace(BASE_PLAN, end_weight=PlannerSettings().end_weight), BASE_SIM),
