@@ -7,7 +7,10 @@ d3 = -z_gripper) and so does the last edge's material frame (d1 = x_gripper), i.
 The free end is held in place during the lead-in - the straight line on which the gripper leaves the hanging pose
 (the planner's lead-in, or the straight line to the first pose of a trajectory that starts elsewhere) - and released
 after it (``hold_free_end='always'`` keeps it pinned, as the paper does for a rope on a pattern whose start is curved:
-a free end carries no moment, so it cannot stay curved). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+a free end carries no moment, so it cannot stay curved; a pin does not carry one either: the experiment option
+``clamp_start_xy`` holds the first nodes on given points, position and direction, a start that carries a moment).
+The rod's rest length is the stretched hanging length unless ``exact_rest_length`` (its own length L; the default
+keeps the tables' set-up, 0.3 % longer). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
 The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
