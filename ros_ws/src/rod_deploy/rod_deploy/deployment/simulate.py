@@ -7,7 +7,10 @@ d3 = -z_gripper) and so does the last edge's material frame (d1 = x_gripper), i.
 The free end is held in place during the lead-in - the straight line on which the gripper leaves the hanging pose
 (the planner's lead-in, or the straight line to the first pose of a trajectory that starts elsewhere) - and released
 after it (``hold_free_end='always'`` keeps it pinned, as the paper does for a rope on a pattern whose start is curved:
-a free end carries no moment, so it cannot stay curved). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+a free end carries no moment, so it cannot stay curved; a pin does not carry one either: the experiment option
+``clamp_start_xy`` holds the first nodes on given points, position and direction, a start that carries a moment).
+The rod's rest length is the stretched hanging length unless ``exact_rest_length`` (its own length L; the default
+keeps the tables' set-up, 0.3 % longer). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
 The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
@@ -55,6 +58,12 @@ class SimulationSettings:
     hold_twist: bool = True          # the gripper also holds the last edge's twist (d1 = x_gripper)
     friction_velocity_m_s: float = 1e-4   # regularisation of Coulomb friction (creep speed scale)
     hold_free_end: str = 'lead-in'   # 'lead-in' (CONTRACTS.md) or 'always' (the paper pins it for the rope's C)
+    #: experiment: (k, 2) points [m], one edge apart, where the first k nodes lie and stay all along (k >= 2: a
+    #: clamped start, position and direction, that carries a bending moment, unlike a pinned or free end); None: off
+    clamp_start_xy: tuple | None = None
+    #: the rod's rest length is its length L (True), not the stretched hanging length L + rho g L^2 / (2 E) it had
+    #: by default (False: 5.0 mm longer for the paper's rod #3); a clamped start implies True
+    exact_rest_length: bool = False
 
 
 @dataclass
@@ -177,6 +186,32 @@ def replay_schedule(t, position, quaternion, rod: RodDescription, start_xy=None,
                           t_release=float(ts[n_lead - 1]))
 
 
+def held_edge_twist(rod_model: DiscreteElasticRod, R_gripper, previous_theta: float) -> float:
+    """Twist angle of the last edge that turns its material d1 onto x_gripper, the edge along d3 = -z_gripper
+    (reference frame parallel-transported from the rod's current one), on the branch nearest ``previous_theta``."""
+    last = rod_model.n_edges - 1
+    d3 = -R_gripper[:, 2]
+    st = rod_model.state
+    d1_ref = parallel_transport(st.d1[last][None], st.tangents[last][None], d3[None])[0]
+    d1_ref -= d3 * np.dot(d1_ref, d3)
+    d1_ref /= np.linalg.norm(d1_ref)
+    target = float(signed_angle(d1_ref, R_gripper[:, 0], d3))
+    return target + 2 * np.pi * round((previous_theta - target) / (2 * np.pi))
+
+
+def _check_clamp(clamp_xy, edge_m, n_edges):
+    """Number of clamped nodes; the points must be (k, 2), 2 <= k < n_edges, one edge length apart."""
+    if clamp_xy.ndim != 2 or clamp_xy.shape[1] != 2 or not 2 <= len(clamp_xy) < n_edges \
+            or not np.all(np.isfinite(clamp_xy)):
+        raise DeploymentError(f'clamp_start_xy must be 2 to {n_edges - 1} finite (x, y) points, got shape '
+                              f'{clamp_xy.shape}')
+    gaps = np.linalg.norm(np.diff(clamp_xy, axis=0), axis=1)
+    if np.max(np.abs(gaps - edge_m)) > 0.02 * edge_m:
+        raise DeploymentError(f'clamp_start_xy points must be one edge ({edge_m * 1000:.3f} mm) apart, got gaps of '
+                              f'{gaps.min() * 1000:.3f}-{gaps.max() * 1000:.3f} mm')
+    return len(clamp_xy)
+
+
 def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: SimulationSettings | None = None,
                         progress=None, n_lead_in: int | None = None) -> DeploymentResult:
     """Simulate the deployment of ``rod`` by a gripper following the trajectory (t, position, quaternion).
@@ -191,8 +226,9 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
         rod.friction if rod.friction is not None else FRICTION_LEVELS['medium'])
     t_wall = time.perf_counter()
     L, h = rod.length_m, rod.radius_m
-    sched = replay_schedule(t, position, quaternion, rod, settings.start_xy, settings.max_gripper_speed_m_s,
-                            n_lead_in)
+    clamp_xy = None if settings.clamp_start_xy is None else np.asarray(settings.clamp_start_xy, float)
+    start_xy = settings.start_xy if clamp_xy is None else clamp_xy[0]
+    sched = replay_schedule(t, position, quaternion, rod, start_xy, settings.max_gripper_speed_m_s, n_lead_in)
     ts, position, start, n_lead, t_release, gripper = (sched.t, sched.position, sched.start_xy, sched.lead_in_rows,
                                                         sched.t_release, sched.gripper)
 
@@ -202,6 +238,16 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     p0, R0 = gripper(0.0)
     free = np.array([start[0], start[1], h])
     nodes = free[None] + (s / L)[:, None] * (p0 - free)[None]     # straight to the hanging pose, uniformly stretched
+    n_clamp = 0
+    if clamp_xy is not None:
+        n_clamp = _check_clamp(clamp_xy, L / n_edges, n_edges)
+        nodes[:n_clamp] = np.column_stack([clamp_xy, np.full(n_clamp, h)])
+    if settings.exact_rest_length or n_clamp:
+        # the rod at its own length L (edges L / N), straight from the free end (or the last clamped node) towards
+        # the hanging pose; the first static solve brings the held nodes up to it, stretching the rod by its weight
+        k = max(n_clamp - 1, 0)
+        u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
+        nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
     params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
     rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)
@@ -220,17 +266,8 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
         return np.concatenate([p, p + dl * R[:, 2]])           # node N, node N-1 = N - dl d3 = N + dl z_g
 
     def top_theta(time_s):
-        p, R = gripper(time_s)
-        d3 = -R[:, 2]
-        st = rod_model.state
-        d1_ref = parallel_transport(st.d1[last][None], st.tangents[last][None], d3[None])[0]
-        d1_ref -= d3 * np.dot(d1_ref, d3)
-        d1_ref /= np.linalg.norm(d1_ref)
-        target = float(signed_angle(d1_ref, R[:, 0], d3))
-        prev = state['theta']
-        target += 2 * np.pi * round((prev - target) / (2 * np.pi))
-        state['theta'] = target
-        return np.array([target])
+        state['theta'] = held_edge_twist(rod_model, gripper(time_s)[1], state['theta'])
+        return np.array([state['theta']])
 
     rod_model.prescribe(top_dofs, top_positions)
     if settings.hold_twist:
@@ -238,6 +275,8 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     free_end = rod_model.node_dof(0)
     hold = {'on': True}
     rod_model.prescribe(free_end, lambda _t: np.array([start[0], start[1], h]))
+    for i in range(1, n_clamp):
+        rod_model.clamp_node(i)
     # settle the hanging rod (it starts straight and at rest: a few steps suffice)
     rod_model.static_solve(tol=1e-8, max_iter=50)
     total = ts[-1] + settings.settle_s
@@ -246,7 +285,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     path = []
     for k in range(steps):
         now = (k + 1) * settings.dt_s
-        if hold['on'] and now > t_release and settings.hold_free_end != 'always':
+        if hold['on'] and now > t_release and settings.hold_free_end != 'always' and n_clamp == 0:
             hold['on'] = False
             del rod_model._prescribed[tuple(free_end.tolist())]
             rod_model.fixed[free_end] = False

@@ -1,16 +1,29 @@
 """The start of a pattern as the rod can hold it: friction-limited curvature near the free end.
 
 A free end carries no moment. On the table, the laid part [0, s] (free end at s = 0) is held in its shape by the
-table's friction alone, so the bending moment EI kappa(s) at s cannot exceed the largest moment friction can
-supply about s, mu rho A g s^2 / 2 (all of [0, s] slipping sideways). With EI = 2 rho A g L_gb^3 (the contract's
-L_gb) the rod can hold at most
+table's friction alone. At the connective node q_C (arc length s) the suspended part acts on it with the pattern's
+bending moment M = EI kappa(s) about the vertical and - the optimal grasp's gripper being moment-free and the force
+along the tangent zero - a sideways force of only F = M / x_g, x_g the gripper's horizontal lead ahead of q_C (2.4-2.6
+L_gb along the grasp data for ls_bar >= 4; the DER statics of ``benchmarks/deployment_decomposition.py --statics``
+finds M / F = 2.4-2.5 L_gb). Friction on a straight laid stretch of weight w per length, turning rigidly about a
+point y0 of it (y = x - s in [-s, 0]), gives at most F = mu w (-2 y0 - s) and M = mu w (s^2 / 2 - y0^2): with no net
+force (y0 = -s / 2) a moment of mu w s^2 / 4, half the mu w s^2 / 2 of all of [0, s] slipping one way (which needs a
+net sideways force mu w s that nothing supplies; the bound before this correction counted on it). With the
+sideways force M / x_g the capacity is lower still, mu w C(s) with C(s) = x_g (2 sqrt(x_g^2 + x_g s + s^2 / 2) - 2 x_g
+- s) (``friction_moment_capacity_m2``: 0.89 s^2 / 4 at s = 2 cm, 0.65 s^2 / 4 at 8 cm for rod #3). The planner uses the
+pure-moment bound (the s^2 growth keeps it a statement about the start only; the sideways force's share is left to
+c): with EI = 2 w L_gb^3 (the contract's L_gb) the rod can hold at most
 
-    |kappa(s)| <= kappa_max(s) = c mu s^2 / (4 L_gb^3),    i.e.  |kappa_bar(s)| <= c mu (s / L_gb)^2 / 4,
+    |kappa(s)| <= kappa_max(s) = c mu s^2 / (8 L_gb^3),    i.e.  |kappa_bar(s)| <= c mu (s / L_gb)^2 / 8,
 
-(c <= 1 the share of the friction the planner counts on), and a pattern's curvature kappa_bar needs a straight-ish
-start of about 2 L_gb sqrt(|kappa_bar| / (c mu)) before the rod can follow it. A tangent start that asks for more
-is left by the rod once the free end is released: the start lies straighter than planned and the rest of the shape
-turns with it.
+(c <= 1 the share of the friction the planner counts on; ``PlannerSettings.friction_share``, default 1: the same
+plans as the earlier bound mu s^2 / (4 L_gb^3) with its share 0.5, the version measured best on the full
+deployments; c = 0.5 of the corrected bound made the full letter C worse, 0.34 -> 0.67 cm: its start strays 18 mm
+from the pattern, which costs more than the slip it avoids), and a pattern's curvature kappa_bar needs a straight-ish start of about
+2 sqrt(2) L_gb sqrt(|kappa_bar| / (c mu)) before the rod can follow it. A tangent start that asks for more is left by
+the rod once the free end is released: the laid start turns about a point of it and the rest of the shape turns
+with it (clamping the first 3 nodes of the rod on the pattern in the simulator removes that turn: letter C, first
+0.25 m, start -21 -> -1.6 degrees, ``benchmarks/results/deployment_decomposition.md``).
 
 ``achievable_start`` replaces the start of the processed pattern by the curve closest to it (least squares on the
 nodes, same arc length, the same first point: the free end stays at P(0)) whose curvature respects kappa_max: the
@@ -35,14 +48,23 @@ from scipy.optimize import least_squares
 BEND_RATE_WEIGHT = 0.3
 
 
+def friction_moment_capacity_m2(s_m, lever_m):
+    """C(s) [m^2]: the largest moment about the vertical friction gives a rigid straight laid stretch [0, s], per
+    mu w, when the load at its end is a moment M with a sideways force M / lever (see the module docstring)."""
+    s = np.asarray(s_m, float)
+    x = float(lever_m)
+    return x * (2.0 * np.sqrt(x * x + x * s + 0.5 * s * s) - 2.0 * x - s)
+
+
 def friction_curvature_limit(s_m, gravito_bending_length_m, friction, share=1.0):
-    """kappa_max(s) [1/m]: the largest curvature friction can hold at arc length s from a free end."""
-    return share * friction * np.asarray(s_m, float) ** 2 / (4.0 * gravito_bending_length_m ** 3)
+    """kappa_max(s) [1/m]: the largest curvature friction can hold at arc length s from a free end, c mu s^2 /
+    (8 L_gb^3) (the pure-moment capacity mu w s^2 / 4 over EI = 2 w L_gb^3)."""
+    return share * friction * np.asarray(s_m, float) ** 2 / (8.0 * gravito_bending_length_m ** 3)
 
 
 def start_length_needed_m(kappa_bar, gravito_bending_length_m, friction, share=1.0):
-    """Arc length from the free end after which |kappa_bar| can be held: 2 L_gb sqrt(|kappa_bar| / (c mu))."""
-    return 2.0 * gravito_bending_length_m * np.sqrt(np.abs(kappa_bar) / (share * friction))
+    """Arc length from the free end after which |kappa_bar| can be held: 2 sqrt(2) L_gb sqrt(|kappa_bar| / (c mu))."""
+    return 2.0 * np.sqrt(2.0) * gravito_bending_length_m * np.sqrt(np.abs(kappa_bar) / (share * friction))
 
 
 def _cumtrapz(f, ds):

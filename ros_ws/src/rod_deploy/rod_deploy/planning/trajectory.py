@@ -59,7 +59,9 @@ class PlannerSettings:
     end_weight: float = END_WEIGHT        # spline weight of the points near the pattern's ends (process_pattern)
     start: str = 'tangent'                # 'tangent' (Alg. 4) or 'achievable' (friction-limited, achievable_start.py)
     friction: float | None = None         # table friction for the 'achievable' start; None: the rod's, else 0.5
-    friction_share: float = 0.5           # share c of the friction the 'achievable' start counts on
+    #: share c of the friction the 'achievable' start counts on (of the pure-moment capacity mu w s^2 / 4; c = 1
+    #: plans exactly what c = 0.5 of the earlier, twice too large bound did: measured best, see achievable_start.py)
+    friction_share: float = 1.0
 
     def validate(self):
         if self.method not in METHODS:

@@ -1,0 +1,55 @@
+"""Simulation set-up of the deployment's start: the rod at its own rest length (its hanging stretch in closed form),
+and the clamped start used to test the moment-free end (held on the given points, bad points refused)."""
+import numpy as np
+import pytest
+
+from rod_deploy.deployment.simulate import (DeploymentError, SimulationSettings, material_parameters,
+                                            simulate_deployment)
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+
+ROD = rod_description_from_dict({'length': 0.2, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
+
+
+def hang(settings):
+    """The rod left hanging at the hanging pose (two identical poses), free end touching the table."""
+    p = np.array([0.0, 0.0, ROD.hanging_height_m])
+    q = np.array([1.0, 0.0, 0.0, 0.0])                 # +z_gripper down (CONTRACTS.md section 4)
+    return simulate_deployment([0.0, 0.1], [p, p], [q, q], ROD, settings)
+
+
+def test_exact_rest_length_hangs_with_the_closed_form_stretch():
+    # lumped masses: edge k (k = 0 at the free end) carries the weight w dl (k + 1/2) of the nodes below it, so
+    # its length is dl (1 + w dl (k + 1/2) / EA); the free end just touches the table (hanging_height_m)
+    dl = 0.01
+    par = material_parameters(ROD, 0.5, 2.0)
+    w = par.rho_A * 9.81
+    k = np.arange(20)
+    expected_strain = w * dl * (k + 0.5) / par.EA
+    for exact in (True, False):
+        res = hang(SimulationSettings(edge_length_m=dl, settle_s=0.1, exact_rest_length=exact))
+        strain = np.linalg.norm(np.diff(res.nodes, axis=0), axis=1) / dl - 1.0
+        if exact:
+            # (the last edge is the gripper's: held at length dl)
+            np.testing.assert_allclose(strain[:-1], expected_strain[:-1], rtol=0.02, atol=2e-6)
+        else:   # the historic set-up: the rod's rest length was the stretched hanging length, L + rho g L^2 / (2 E)
+            assert strain[0] > 2.0 * expected_strain[0]     # stands on its free end
+
+
+def test_a_clamped_start_stays_on_its_points_and_bad_points_are_refused():
+    th = np.linspace(0.0, 1.0, 200)
+    arc = 0.1 * np.column_stack([np.sin(th), 1.0 - np.cos(th)])          # radius 10 cm from its first point
+    rod = rod_description_from_dict({'length': 0.12, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
+    plan = plan_trajectory(arc[th <= 0.4], rod, PlannerSettings(step_m=0.01))
+    pts = plan.pattern.xy[:3]
+    res = simulate_deployment(plan.t, plan.position, plan.quaternion, rod,     # fast and coarse: only the clamp
+                              SimulationSettings(edge_length_m=0.01, clamp_start_xy=pts, settle_s=0.1, dt_s=0.05,
+                                                 max_gripper_speed_m_s=0.05))
+    np.testing.assert_allclose(res.nodes[:3, :2], pts, atol=1e-12)
+    np.testing.assert_allclose(res.nodes[:3, 2], rod.radius_m, atol=1e-12)
+    with pytest.raises(DeploymentError, match='one edge'):
+        simulate_deployment(plan.t, plan.position, plan.quaternion, rod,
+                            SimulationSettings(edge_length_m=0.01, clamp_start_xy=pts * 2.0))
+    with pytest.raises(DeploymentError, match='finite'):
+        simulate_deployment(plan.t, plan.position, plan.quaternion, rod,
+                            SimulationSettings(edge_length_m=0.01, clamp_start_xy=pts[:1]))
