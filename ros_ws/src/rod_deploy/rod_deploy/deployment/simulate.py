@@ -134,11 +134,16 @@ class ReplaySchedule:
     def gripper(self, time_s):
         """(position (3,), rotation matrix (3, 3)) of the gripper at replay time ``time_s`` (clamped)."""
         tt = min(max(time_s, self.t[0]), self.t[-1])
-        p = np.array([np.interp(tt, self.t, self.position[:, k]) for k in range(3)])
-        return p, self._slerp([tt]).as_matrix()[0]
+        if tt != self._last[0]:       # a step asks twice for the same time (positions, then the twist)
+            p = np.array([np.interp(tt, self.t, self.position[:, k]) for k in range(3)])
+            R = self._slerp([tt]).as_matrix()[0]
+            p.flags.writeable = R.flags.writeable = False
+            self._last = (tt, p, R)
+        return self._last[1], self._last[2]
 
     def __post_init__(self):
         self._slerp = Slerp(self.t, Rotation.from_quat(self.quaternion))
+        self._last = (None, None, None)
 
 
 def replay_schedule(t, position, quaternion, rod: RodDescription, start_xy=None,
