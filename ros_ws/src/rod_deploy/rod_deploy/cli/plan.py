@@ -56,9 +56,7 @@ def run(args) -> int:
         points = load_pattern(args.pattern, m_per_px=args.m_per_px, origin=args.origin, homography=args.homography,
                               object_index=args.object)
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
-                                   speed_m_s=args.speed)
-        if args.start:
-            settings.start = args.start
+                                   speed_m_s=args.speed, **({'start': args.start} if args.start else {}))
         bar = None
         if args.method == 'numeric' and not args.quiet:
             from tqdm import tqdm

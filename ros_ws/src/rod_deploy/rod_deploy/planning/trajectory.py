@@ -57,7 +57,7 @@ class PlannerSettings:
     min_ls_bar: float = 0.5               # the suspended part never shorter than this (the grasp data's range)
     max_abs_kappa_bar: float = 4.0        # the grasp data's range of curvature
     end_weight: float = END_WEIGHT        # spline weight of the points near the pattern's ends (process_pattern)
-    start: str = 'tangent'                # 'tangent' (Alg. 4) or 'achievable' (friction-limited, achievable_start.py)
+    start: str = 'achievable'             # 'achievable' (friction-limited, achievable_start.py) or 'tangent' (Alg. 4)
     friction: float | None = None         # table friction for the 'achievable' start; None: the rod's, else 0.5
     friction_share: float = 0.5           # share c of the friction the 'achievable' start counts on
 
