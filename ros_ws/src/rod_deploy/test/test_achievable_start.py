@@ -60,10 +60,17 @@ def test_a_curved_start_is_replaced_by_the_closest_holdable_curve():
     assert dev.max() < 5e-3
 
 
-def test_planner_option():
+def test_planner_option_is_the_default_and_leaves_a_straight_start_alone():
+    assert PlannerSettings().start == 'achievable'
+    straight = np.column_stack([np.linspace(0.0, 0.3, 61), np.zeros(61)])
+    a = plan_trajectory(straight, ROD)
+    b = plan_trajectory(straight, ROD, PlannerSettings(start='tangent'))
+    np.testing.assert_array_equal(a.pattern.xy, b.pattern.xy)
+    np.testing.assert_array_equal(a.position, b.position)
+    np.testing.assert_array_equal(a.quaternion, b.quaternion)
     pts = arc(0.1, np.pi)
-    plain = plan_trajectory(pts, ROD)
-    plan = plan_trajectory(pts, ROD, PlannerSettings(start='achievable'))
+    plain = plan_trajectory(pts, ROD, PlannerSettings(start='tangent'))
+    plan = plan_trajectory(pts, ROD)
     assert plain.pattern.xy.shape == plan.pattern.xy.shape
     np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-12)   # hanging above P(0)
     np.testing.assert_allclose(plan.pattern.xy[0], pts[0], atol=2e-4)
