@@ -91,11 +91,13 @@ def test_cli_plan_start_option(tmp_path, capsys):
     rod = tmp_path / 'rod.yaml'
     rod.write_text('length: 0.6\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
     outs = {}
-    for start in ('tangent', 'achievable'):
+    for start in ('tangent', 'achievable', None):
         out = tmp_path / f'{start}.csv'
-        assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(out), '--start', start]) == 0
-        json.loads(capsys.readouterr().out)
+        assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(out)]
+                   + (['--start', start] if start else [])) == 0
+        assert json.loads(capsys.readouterr().out)['start'] == (start or 'achievable')
         outs[start] = read_trajectory_csv(out)
+    np.testing.assert_array_equal(outs[None][1], outs['achievable'][1])      # the default start
     a, b = outs['tangent'], outs['achievable']
     assert len(a[0]) == len(b[0])
     np.testing.assert_allclose(a[1][0], b[1][0], atol=1e-9)            # the same hanging pose above P(0)
