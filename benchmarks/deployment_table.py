@@ -11,7 +11,8 @@ start, drawn after the friction-limited start was designed: the digit 6, the let
 Table 1 (#1 pink VPS L_gb 1.8 cm h 1.6 mm L 0.875 m, #2 green VPS 3.2 / 1.6 / 0.885, #3 rope 3.4 / 2.0 / 0.89).
 Friction levels: low 0.2, medium 0.5, high 1.0. Planners: ours (``nn``, ``numeric``), the paper's ``intuitive``
 baseline, and ``published``: the released planner's trajectories for the 7 patterns (rod #3 only, the rod they
-were made for; replayed from the hanging pose above the pattern's first point). Writes a markdown table and a plot
+were made for; replayed from the hanging pose above the pattern's first point). Our planners are told the row's
+table friction (``PlannerSettings.friction``: the friction-limited start, the default, depends on it). Writes a markdown table and a plot
 per case (``--plots``).
 """
 from __future__ import annotations
@@ -100,7 +101,8 @@ def write_table(out, rows, t_all, args):
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
              'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
              f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
-             f'pattern length. Self-contact ignored. Planner start: {args.start or "the default"}.', '',
+             f'pattern length. Self-contact ignored. Planner start: {args.start or PlannerSettings().start} '
+             '(nn, numeric; the friction-limited start plans with the table friction of the row).', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:
@@ -131,6 +133,7 @@ def main():
     ap.add_argument('--out-name', default='deployment_table.md', help='name of the results file')
     add_results_argument(ap)
     args = ap.parse_args()
+    start_used = args.start or PlannerSettings().start
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')
@@ -151,10 +154,9 @@ def main():
                             t, p, q = published_trajectory(name)
                             start = tuple(P[0])
                         else:
-                            plan_settings = PlannerSettings(method=method)
-                            if args.start:
-                                plan_settings.start = args.start
-                            plan = plan_trajectory(P, rod, plan_settings)
+                            plan = plan_trajectory(P, rod, PlannerSettings(
+                                method=method, friction=FRICTION_LEVELS[fr],
+                                **({'start': args.start} if args.start else {})))
                             t, p, q, start = plan.t, plan.position, plan.quaternion, None
                         res = simulate_deployment(t, p, q, rod, SimulationSettings(
                             friction=FRICTION_LEVELS[fr], start_xy=start,
@@ -164,7 +166,7 @@ def main():
                                res.wall_time_s, '')
                         if args.plots:
                             from rod_deploy.deployment.plots import plot_deployment
-                            tag = f'_{args.start}' if args.start and method != 'published' else ''
+                            tag = f'_{start_used}' if method in ('nn', 'numeric') else ''
                             plot_deployment(out.parent / f'deploy_{name}_{method}_rod{rod_id}_{fr}{tag}.png', res, P,
                                             f'{name}, {method}, rod #{rod_id}, {fr} friction')
                     except ValueError as exc:

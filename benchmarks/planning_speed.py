@@ -38,17 +38,23 @@ def main():
     rod = rod_description_from_dict({'length': 1.2, 'radius': 0.002, 'L_gb': 0.034})
     pts = spiral()
     rows = []
-    for method in ('nn', 'intuitive'):
-        plan_trajectory(pts, rod, PlannerSettings(method=method))              # warm (imports, weights)
-        times = []
+    default_start = PlannerSettings().start
+    for method, start in (('nn', default_start), ('nn', 'tangent'), ('intuitive', default_start)):
+        settings = PlannerSettings(method=method, start=start)
+        plan_trajectory(pts, rod, settings)                                      # warm (imports, weights)
+        times, cpu = [], []
         for _ in range(args.repeats):
-            t0 = time.perf_counter()
-            plan = plan_trajectory(pts, rod, PlannerSettings(method=method))
+            t0, c0 = time.perf_counter(), time.process_time()
+            plan = plan_trajectory(pts, rod, settings)
             times.append(time.perf_counter() - t0)
-        rows.append((f'in-process, {method}', len(plan.pattern.s), 1000 * float(np.median(times))))
-    t0 = time.perf_counter()
+            cpu.append(time.process_time() - c0)
+        label = method if method == 'intuitive' else f'{method}, {start} start'
+        rows.append((f'in-process, {label}', len(plan.pattern.s), 1000 * float(np.median(times)),
+                     1000 * float(np.median(cpu))))
+    t0, c0 = time.perf_counter(), time.process_time()
     plan_trajectory(pts[:60], rod, PlannerSettings(method='numeric'))
-    rows.append(('in-process, numeric (60 nodes)', 60, 1000 * (time.perf_counter() - t0)))
+    rows.append(('in-process, numeric (60 nodes)', 60, 1000 * (time.perf_counter() - t0),
+                 1000 * (time.process_time() - c0)))
     with tempfile.TemporaryDirectory() as d:
         np.savetxt(Path(d) / 'p.txt', pts)
         (Path(d) / 'rod.yaml').write_text('length: 1.2\nradius: 0.002\nL_gb: 0.034\n')
@@ -59,12 +65,16 @@ def main():
                             '--rod', str(Path(d) / 'rod.yaml'), '--out', str(Path(d) / 't.csv')], check=True,
                            capture_output=True)
             times.append(time.perf_counter() - t0)
-        rows.append(('whole `rod-deploy plan` process, nn', len(plan.pattern.s), 1000 * float(np.median(times))))
+        rows.append((f'whole `rod-deploy plan` process, nn, {default_start} start', len(plan.pattern.s),
+                     1000 * float(np.median(times)), None))
     lines = ['# Planning speed (`python benchmarks/planning_speed.py`)', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; '
-             f'a 200-node spiral (5 mm steps), rod L_gb 3.4 cm; medians of {args.repeats} runs (targets: 50 ms '
+             f'a 200-node spiral (5 mm steps, starting on a bend of radius 15 cm), rod L_gb 3.4 cm; the planner\'s '
+             f'default start: {default_start}; medians of {args.repeats} runs (targets: 50 ms '
              'in-process with the network, 5 s for the whole process; the paper: about 0.4 s).', '',
-             '| what | nodes | median ms |', '|---|---|---|'] + [f'| {a} | {b} | {c:.1f} |' for a, b, c in rows]
+             'CPU ms: the process\'s CPU time (time.process_time, all threads), less sensitive to the load than the '
+             'wall clock.', '', '| what | nodes | median ms | median CPU ms |', '|---|---|---|---|'] + [
+        f'| {a} | {b} | {c:.1f} | {"" if d is None else f"{d:.1f}"} |' for a, b, c, d in rows]
     out = results_path(args, 'planning_speed.md')
     out.write_text('\n'.join(lines) + '\n')
     print('\n'.join(lines))

@@ -74,10 +74,17 @@ def test_a_curved_start_is_replaced_by_the_closest_holdable_curve():
     assert dev.max() < 8e-3          # 6.7 mm: a 10 cm radius from its first point, c mu = 0.5
 
 
-def test_planner_option():
+def test_planner_option_is_the_default_and_leaves_a_straight_start_alone():
+    assert PlannerSettings().start == 'achievable'
+    straight = np.column_stack([np.linspace(0.0, 0.3, 61), np.zeros(61)])
+    a = plan_trajectory(straight, ROD)
+    b = plan_trajectory(straight, ROD, PlannerSettings(start='tangent'))
+    np.testing.assert_array_equal(a.pattern.xy, b.pattern.xy)
+    np.testing.assert_array_equal(a.position, b.position)
+    np.testing.assert_array_equal(a.quaternion, b.quaternion)
     pts = arc(0.1, np.pi)
-    plain = plan_trajectory(pts, ROD)
-    plan = plan_trajectory(pts, ROD, PlannerSettings(start='achievable'))
+    plain = plan_trajectory(pts, ROD, PlannerSettings(start='tangent'))
+    plan = plan_trajectory(pts, ROD)
     assert plain.pattern.xy.shape == plan.pattern.xy.shape
     np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-12)   # hanging above P(0)
     np.testing.assert_allclose(plan.pattern.xy[0], pts[0], atol=2e-4)
@@ -98,11 +105,13 @@ def test_cli_plan_start_option(tmp_path, capsys):
     rod = tmp_path / 'rod.yaml'
     rod.write_text('length: 0.6\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
     outs = {}
-    for start in ('tangent', 'achievable'):
+    for start in ('tangent', 'achievable', None):
         out = tmp_path / f'{start}.csv'
-        assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(out), '--start', start]) == 0
-        json.loads(capsys.readouterr().out)
+        assert cli(['plan', '--pattern', str(pattern), '--rod', str(rod), '--out', str(out)]
+                   + (['--start', start] if start else [])) == 0
+        assert json.loads(capsys.readouterr().out)['start'] == (start or 'achievable')
         outs[start] = read_trajectory_csv(out)
+    np.testing.assert_array_equal(outs[None][1], outs['achievable'][1])      # the default start
     a, b = outs['tangent'], outs['achievable']
     assert len(a[0]) == len(b[0])
     np.testing.assert_allclose(a[1][0], b[1][0], atol=1e-9)            # the same hanging pose above P(0)

@@ -1,6 +1,7 @@
 """grasp_trajectory_generator in process: nav_msgs/Path on /pattern -> stamped gripper Path on /gripper_trajectory;
 bad patterns give an ERROR status and publish nothing."""
 import numpy as np
+import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
@@ -53,3 +54,13 @@ def test_pattern_in_trajectory_out_and_errors(ros_context, wait_for):
     np.testing.assert_allclose(quat, expected.quaternion, atol=1e-9)
     np.testing.assert_allclose(t, expected.t, atol=1e-6)              # poses stamped along the trajectory
     assert trajectories[0].header.frame_id == 'table'
+
+
+def test_start_parameter(ros_context):
+    rod = [Parameter('length', value=0.89), Parameter('radius', value=0.002), Parameter('L_gb', value=0.034)]
+    node = ros_context.add(GraspTrajectoryGenerator(context=ros_context.context, parameter_overrides=rod + [
+        Parameter('start', value='tangent')]))
+    assert node.settings.start == 'tangent'
+    with pytest.raises(ValueError, match="parameter 'start'"):
+        GraspTrajectoryGenerator(context=ros_context.context, parameter_overrides=rod + [
+            Parameter('start', value='curved')])

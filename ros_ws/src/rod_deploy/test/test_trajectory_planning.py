@@ -27,7 +27,7 @@ def test_circle_curvature_sign_and_value(ccw):
 
 
 def test_node_inputs_follow_alg4():
-    plan = plan_trajectory(circle(0.12, np.pi), ROD, PlannerSettings(method='nn', smoothing_m=0.0))
+    plan = plan_trajectory(circle(0.12, np.pi), ROD, PlannerSettings(method='nn', smoothing_m=0.0, start='tangent'))
     s = plan.pattern.s
     np.testing.assert_allclose(plan.inputs[:, 0], (0.89 - s) / 0.034)                  # ls_bar = (L - s) / L_gb
     np.testing.assert_allclose(plan.inputs[:, 1], 4 * 0.034 ** 2 / 0.002 ** 2)          # ks_bar

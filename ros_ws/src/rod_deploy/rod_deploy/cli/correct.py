@@ -2,11 +2,11 @@
 
     rod-deploy correct --pattern P --rod ROD.yaml --deployed deployed.csv [--traj traj.csv] --out DIR
                        [--replan] [--simulate] [--effects natural_curvature,L_gb,friction] [--noise-floor-mm 0.5]
-                       [--friction MU] [--edge-length 0.005] [--dt 0.05] [--speed 0.01]
+                       [--friction MU] [--edge-length 0.005] [--dt 0.05] [--speed 0.01] [--start tangent|achievable]
 
 The deployed shape (contract CSV x,y, from ``rod-deploy simulate`` or ``rod-deploy perceive``) is compared with our
 simulator replaying the trajectory that laid it (``--traj``; default: the planner's ``nn`` trajectory for the
-declared rod) with the declared rod; a residual the declared rod does not explain is tested against candidate
+declared rod; ``--start``: the planner's start, as in ``rod-deploy plan``) with the declared rod; a residual the declared rod does not explain is tested against candidate
 effects (a natural curvature, a wrong L_gb, too little friction), each fitted with the simulator as the forward
 model and kept only on strong statistical evidence confirmed by a simulation (see
 ``rod_deploy.deployment.correction``). Writes DIR/report.json (parameters, effects_added with name, parameters,
@@ -45,6 +45,9 @@ def register(subparsers):
     p.add_argument('--edge-length', type=float, default=0.005, help='rod discretisation [m] (default 0.005)')
     p.add_argument('--dt', type=float, default=0.05, help='time step [s] (default 0.05)')
     p.add_argument('--speed', type=float, default=0.01, help='gripper speed of the replay [m/s] (default 0.01)')
+    p.add_argument('--start', choices=('tangent', 'achievable'), default=None,
+                   help="the planner's start for the trajectory planned here (as in `rod-deploy plan`; default: the "
+                        "planner's, achievable)")
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     p.set_defaults(func=run)
 
@@ -112,8 +115,11 @@ def run(args) -> int:
             bar.update(k - bar.n)
 
     try:
-        report, diag, rp = correct(pattern, rod, observed, deployment, sim_settings=sim, settings=settings,
-                                   replan_trajectory=args.replan, simulate=args.simulate, progress=progress)
+        from rod_deploy.planning.trajectory import PlannerSettings
+        planner = PlannerSettings(**({'start': args.start} if args.start else {}))
+        report, diag, rp = correct(pattern, rod, observed, deployment, planner_settings=planner, sim_settings=sim,
+                                   settings=settings, replan_trajectory=args.replan, simulate=args.simulate,
+                                   progress=progress)
     except ValueError as e:
         raise CliError(str(e)) from None
     finally:

@@ -10,8 +10,9 @@ frame, the held node of the rod, +z_gripper along which the rod leaves the gripp
 Methods: ``nn`` (default, the trained network), ``numeric`` (the optimal-grasp solver along the pattern with
 curvature continuation: slow, exact), ``intuitive`` (the paper's baseline). A pattern that cannot be deployed (too
 long for the rod, too sharp, fewer than 3 points, NaN, repeated points) gives one error line naming the point,
-exit 2, and no file. ``--start achievable``: the start laid along the curve friction can hold near the free end
-(``planning/achievable_start.py``; the rod file's ``friction``, else 0.5), instead of Alg. 4's tangent start.
+exit 2, and no file. ``--start achievable`` (the default): the start laid along the curve friction can hold near the
+free end (``planning/achievable_start.py``; the rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's
+start, every node on the pattern itself.
 """
 from __future__ import annotations
 
@@ -38,8 +39,8 @@ def register(subparsers):
                    help='RMS distance the smoothing spline may keep from the pattern points [m] (default 0.0005)')
     p.add_argument('--speed', type=float, default=0.01, help='gripper speed [m/s] (default 0.01)')
     p.add_argument('--start', choices=('tangent', 'achievable'), default=None,
-                   help="tangent: Alg. 4 from the pattern's first point; achievable: the start bent only as far as "
-                        "friction can hold it near the free end (default: the planner's)")
+                   help="achievable (default): the start bent only as far as friction can hold it near the free end; "
+                        "tangent: Alg. 4 from the pattern's first point")
     p.add_argument('--quiet', action='store_true', help='no progress bar (numeric method)')
     p.set_defaults(func=run)
 
@@ -56,9 +57,7 @@ def run(args) -> int:
         points = load_pattern(args.pattern, m_per_px=args.m_per_px, origin=args.origin, homography=args.homography,
                               object_index=args.object)
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
-                                   speed_m_s=args.speed)
-        if args.start:
-            settings.start = args.start
+                                   speed_m_s=args.speed, **({'start': args.start} if args.start else {}))
         bar = None
         if args.method == 'numeric' and not args.quiet:
             from tqdm import tqdm
@@ -79,6 +78,8 @@ def run(args) -> int:
                'ls_bar_range': [round(float(plan.inputs[:, 0].min()), 4), round(float(plan.inputs[:, 0].max()), 4)],
                'max_abs_kappa_bar': round(float(abs(plan.inputs[:, 2]).max()), 4), 'ks_bar': round(rod.ks_bar, 2),
                'planning_time_s': round(plan.timings_s['total'], 4)}
+    if plan.method != 'intuitive':                      # the intuitive baseline follows the pattern as given
+        summary['start'] = settings.start
     if args.plot:
         from rod_deploy.deployment.plots import plot_plan
         plot_plan(args.plot, plan)

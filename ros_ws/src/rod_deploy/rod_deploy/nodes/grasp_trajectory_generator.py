@@ -16,6 +16,8 @@ Parameters
   step_m       (double)  node spacing along the pattern (default 0.005)
   smoothing_m  (double)  RMS distance of the smoothing spline from the pattern points (default 0.0005)
   speed_m_s    (double)  gripper speed (default 0.01)
+  start        (string)  achievable (default: the start bent only as far as the table friction holds it, the rod
+                         file's friction or 0.5) or tangent (Alg. 4's start)
 """
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ from rclpy.time import Time
 
 from robot_bridge.nodes.common import LatestMessageWorker, declare_parameter, non_negative, positive, run_node
 from rod_deploy.planning.rod_description import RodDescription, load_rod_description, rod_description_from_dict
-from rod_deploy.planning.trajectory import METHODS, PlannerSettings, plan_trajectory
+from rod_deploy.planning.trajectory import METHODS, STARTS, PlannerSettings, plan_trajectory
 
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -59,7 +61,10 @@ class GraspTrajectoryGenerator(Node):
         smoothing = declare_parameter(self, 'smoothing_m', 0.0005, 'smoothing spline RMS distance [m]',
                                       check=non_negative)
         speed = declare_parameter(self, 'speed_m_s', 0.01, 'gripper speed [m/s]', check=positive)
-        self.settings = PlannerSettings(method=method, step_m=step, smoothing_m=smoothing, speed_m_s=speed)
+        start = declare_parameter(self, 'start', PlannerSettings.start, 'achievable (friction-limited) or tangent',
+                                  check=lambda v: None if v in STARTS else f'must be one of {STARTS}')
+        self.settings = PlannerSettings(method=method, step_m=step, smoothing_m=smoothing, speed_m_s=speed,
+                                        start=start)
         self.settings.validate()
         self.publisher = self.create_publisher(Path, '/gripper_trajectory', LATCHED)
         self.status = self.create_publisher(DiagnosticArray, '~/status', LATCHED)

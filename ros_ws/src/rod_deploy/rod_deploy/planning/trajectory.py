@@ -9,6 +9,11 @@ paper's intuitive baseline (``intuitive``, Fig. 2a: the gripper straight above t
 the suspended length, moving along the tangent and down by the length laid, i.e. along a 45-degree descent), then
 R_t = (x_hat, z_hat x x_hat, z_hat) and q_M = q_C + R_t q_bar_M L_gb.
 
+The start (``start``): by default (``'achievable'``, ``achievable_start.py``) the pattern's start is replaced, before
+the nodes are planned, by the closest curve whose curvature the table friction can hold near the moment-free end
+(a start within that bound, e.g. a straight one, is left unchanged); ``'tangent'`` is Alg. 4 as written, every node
+planned on the pattern itself. The intuitive baseline always uses the pattern as given.
+
 Sign of the curvature: kappa(s) > 0 turns left (towards z_hat x T, counter-clockwise seen from above); the grasp
 solvers take the released code's kappa_bar = -kappa L_gb (positive turns right, see ``optimal_grasp``).
 
@@ -57,7 +62,7 @@ class PlannerSettings:
     min_ls_bar: float = 0.5               # the suspended part never shorter than this (the grasp data's range)
     max_abs_kappa_bar: float = 4.0        # the grasp data's range of curvature
     end_weight: float = END_WEIGHT        # spline weight of the points near the pattern's ends (process_pattern)
-    start: str = 'tangent'                # 'tangent' (Alg. 4) or 'achievable' (friction-limited, achievable_start.py)
+    start: str = 'achievable'             # 'achievable' (friction-limited, achievable_start.py) or 'tangent' (Alg. 4)
     friction: float | None = None         # table friction for the 'achievable' start; None: the rod's, else 0.5
     #: share c of the friction the 'achievable' start counts on (of the pure-moment capacity mu w s^2 / 4; c = 1
     #: plans exactly what c = 0.5 of the earlier, twice too large bound did: measured best, see achievable_start.py)
