@@ -63,3 +63,16 @@ def test_through_main_exit_code(capsys, monkeypatch):
     assert 'error' in capsys.readouterr().err
     assert cli_main.main(['grasp', '--ls', '5', '--ks', '100', '--no-stability']) == 0
     assert json.loads(capsys.readouterr().out)['position'][2] > 0
+
+
+def test_run_as_a_module_gives_the_one_line_error(tmp_path):
+    """`python -m rod_deploy.cli.main` loads main.py twice (as __main__ and as the package module): a subcommand's
+    CliError must still be caught (one line, exit 2, no traceback)."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-m', 'rod_deploy.cli.main', 'evaluate', '--pattern',
+                           str(tmp_path / 'missing.csv'), '--deployed', str(tmp_path / 'missing2.csv')],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert 'Traceback' not in proc.stderr
+    assert proc.stderr.startswith('rod-deploy evaluate: error: ') and 'does not exist' in proc.stderr

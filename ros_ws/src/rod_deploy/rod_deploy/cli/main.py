@@ -35,4 +35,7 @@ def main(argv=None):
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    # run as `python -m rod_deploy.cli.main`: this file is then loaded a second time as __main__, and the subcommands
+    # raise the package module's CliError, not this copy's: call the package module's main
+    from rod_deploy.cli.main import main as package_main
+    sys.exit(package_main())
