@@ -31,6 +31,7 @@ from itertools import combinations
 
 import numpy as np
 
+from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 
 MAX_TURN_RAD = np.pi - 1e-3
@@ -162,7 +163,7 @@ def _widest_rod(graph, branches, width_at, fit_px):
     gives two branches, so one odd branch, a spur or a rod lying alongside, does not count); 0 if fewer
     than two branches are long enough."""
     lo, hi = int(np.ceil(fit_px)), int(np.ceil(3 * fit_px)) + 1
-    widths = sorted(float(np.median(width_at(pts[lo:hi]))) - 1.0 for pts in
+    widths = sorted(float(median0(width_at(pts[lo:hi]))) - 1.0 for pts in
                     (graph.branch_points(eid, side) for eid, side in branches) if len(pts) >= lo + 3)
     return widths[-2] if len(widths) >= 2 else 0.0
 
@@ -195,7 +196,7 @@ def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack,
                 if beid == eid:
                     continue
                 pts = graph.branch_points(beid, side)
-                w = float(np.median(width_at(pts[:int(np.ceil(fit_px)) + 1][-max(3, int(fit_px) // 2):])))
+                w = float(median0(width_at(pts[:int(np.ceil(fit_px)) + 1][-max(3, int(fit_px) // 2):])))
                 if len(pts) < MIN_ARM_FRACTION * length:   # a spur or a piece of shadow, not a rod's arm
                     break
                 far = pts[min(len(pts) - 1, int(0.5 * length + 3.0 * w))]

@@ -62,6 +62,8 @@ def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
 def median0(values: np.ndarray) -> np.ndarray:
     """``np.median(values, axis=0)`` (finite values) without its per-call overhead: many small arrays."""
     s = np.sort(values, axis=0)
+    if not len(s):
+        return np.full(s.shape[1:], np.nan)   # as np.median
     h = len(s) // 2
     return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
 
@@ -148,8 +150,7 @@ def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
         if ta is None or tb is None:
             continue
         wa, wb = (_strand_width(width_at, point_sets[3 * k + j], width_px) for j in (1, 2))
-        signed = [_edge_contrast(grey, dec.position, ra, rb, wa, wb)
-                  for ra, rb in _perturbed_directions(ta, tb, tangent_tolerance_rad)]
+        signed = _edge_contrasts(grey, dec.position, _perturbed_directions(ta, tb, tangent_tolerance_rad), wa, wb)
         if not np.all(np.isfinite(signed)):
             continue
         # the decision must hold for every direction within the tolerance: the confidence is the worst case
@@ -163,15 +164,20 @@ def _strand_width(width_at, points, width_px):
     """A strand's own width: the median of ``width_at`` over its colour points, else ``width_px``."""
     if width_at is None or not len(points):
         return width_px
-    w = float(np.median(width_at(points)))
+    w = float(median0(width_at(points)))
     return w if np.isfinite(w) and w > 0 else width_px
 
 
-def _edge_contrast(grey, centre, ta, tb, wa, wb):
-    """(e_a - e_b) / (e_a + e_b) of the occlusion edge strengths of strands a and b (NaN if unknown)."""
-    ea = occlusion_edge_strength(grey, centre, ta, tb, wa, wb)
-    eb = occlusion_edge_strength(grey, centre, tb, ta, wb, wa)
-    return (ea - eb) / (ea + eb) if np.isfinite(ea) and np.isfinite(eb) and ea + eb > 0 else float('nan')
+def _edge_contrasts(grey, centre, directions, wa, wb):
+    """(e_a - e_b) / (e_a + e_b) of the occlusion edge strengths of strands a and b (NaN if unknown), for
+    each (t_a, t_b) of ``directions`` (all probes in one gather)."""
+    probes = []
+    for ta, tb in directions:
+        probes += [_occlusion_probes(grey.shape, centre, ta, tb, wa, wb),
+                   _occlusion_probes(grey.shape, centre, tb, ta, wb, wa)]
+    e = _edge_strengths(grey, probes)
+    return [(ea - eb) / (ea + eb) if np.isfinite(ea) and np.isfinite(eb) and ea + eb > 0 else float('nan')
+            for ea, eb in zip(e[0::2], e[1::2])]
 
 
 def _rotate(t, angle_rad):
@@ -214,6 +220,13 @@ def occlusion_edge_strength(grey: np.ndarray, centre, t_self, t_other, width_px:
     the upper rod), the mean absolute derivative of ``grey`` across ``t_self`` is taken; the strongest line
     on each side counts, and the two sides are added. NaN where the crossing is too shallow or runs off
     the image."""
+    return _edge_strengths(grey, [_occlusion_probes(grey.shape, centre, t_self, t_other, width_px,
+                                                    other_width_px)])[0]
+
+
+def _occlusion_probes(shape, centre, t_self, t_other, width_px, other_width_px=None):
+    """The points where :func:`occlusion_edge_strength` samples an image of ``shape``: (side, +- 0.75 n,
+    offset, u, 2); None where the crossing is too shallow or the points run off the image."""
     t_self = np.asarray(t_self, float)
     t_other = np.asarray(t_other, float)
     other_width_px = width_px if other_width_px is None else other_width_px
@@ -221,30 +234,45 @@ def occlusion_edge_strength(grey: np.ndarray, centre, t_self, t_other, width_px:
     along, across = float(t_other @ t_self), float(t_other @ n)
     sin = abs(across)
     if sin < 0.2:
-        return float('nan')
+        return None
     half = 0.5 * other_width_px / sin
     u = np.linspace(-0.7 * half, 0.7 * half, max(3, int(np.ceil(1.4 * half)) + 1))
     offsets = np.arange(np.floor(max(1.0, 0.25 * width_px - 1.0)), np.ceil(0.75 * width_px + 1.0) + 1.0)
-    h, w = grey.shape
-    total = 0.0
-    for side in (1.0, -1.0):
-        o = side * offsets
-        u_o = o * along / across                     # the other strand's centre line on the line at offset o
-        pts = (np.asarray(centre, float)[None, None, :] + o[:, None, None] * n[None, None, :]
-               + (u_o[:, None] + u[None, :])[:, :, None] * t_self[None, None, :])
-        plus, minus = pts + 0.75 * n, pts - 0.75 * n
-        if (min(plus.min(), minus.min()) < 0 or max(plus[..., 0].max(), minus[..., 0].max()) > h - 1
-                or max(plus[..., 1].max(), minus[..., 1].max()) > w - 1):
-            return float('nan')
-        deriv = np.abs(_bilinear(grey, plus) - _bilinear(grey, minus)) / 1.5
-        total += float(deriv.mean(axis=1).max())
-    return total
+    h, w = shape
+    # both sides (+n, -n), both probe lines (+- 0.75 n): (side, +-, offset, u)
+    o = np.stack([offsets, -offsets])
+    u_o = o * along / across                     # the other strand's centre line on the line at offset o
+    pts = (np.asarray(centre, float)[None, None, None, :] + o[:, :, None, None] * n
+           + (u_o[:, :, None] + u)[..., None] * t_self)
+    probes = np.stack([pts + 0.75 * n, pts - 0.75 * n], axis=1)
+    if probes.min() < 0 or probes[..., 0].max() > h - 1 or probes[..., 1].max() > w - 1:
+        return None
+    return probes
+
+
+def _edge_strengths(grey, probe_sets):
+    """:func:`occlusion_edge_strength` of each of ``probe_sets`` (from :func:`_occlusion_probes`; NaN for
+    None), with one bilinear gather for all."""
+    valid = [p.reshape(-1, 2) for p in probe_sets if p is not None]
+    values = _bilinear(grey, np.concatenate(valid)) if valid else None
+    out, start = [], 0
+    for p in probe_sets:
+        if p is None:
+            out.append(float('nan'))
+            continue
+        v = values[start:start + p.size // 2].reshape(p.shape[:-1])
+        start += p.size // 2
+        # |derivative| across t_self on each line: the strongest line per side counts, both sides added
+        deriv = np.abs(v[:, 0] - v[:, 1]) / 1.5
+        strongest = deriv.mean(axis=2).max(axis=1)
+        out.append(float(strongest[0]) + float(strongest[1]))
+    return out
 
 
 def _bilinear(image, pts):
     r, c = pts[..., 0], pts[..., 1]
-    r0 = np.clip(np.floor(r).astype(np.intp), 0, image.shape[0] - 2)
-    c0 = np.clip(np.floor(c).astype(np.intp), 0, image.shape[1] - 2)
+    r0 = np.minimum(np.maximum(np.floor(r).astype(np.intp), 0), image.shape[0] - 2)
+    c0 = np.minimum(np.maximum(np.floor(c).astype(np.intp), 0), image.shape[1] - 2)
     fr, fc = r - r0, c - c0
     return ((1 - fr) * (1 - fc) * image[r0, c0] + (1 - fr) * fc * image[r0, c0 + 1]
             + fr * (1 - fc) * image[r0 + 1, c0] + fr * fc * image[r0 + 1, c0 + 1])

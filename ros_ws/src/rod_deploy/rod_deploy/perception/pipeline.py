@@ -245,9 +245,8 @@ def _centreline_width(graph, dist, f, w, mismatch):
 def _lookup(image, points):
     """``image`` at the pixels nearest to (row, col) ``points`` (clipped to the image)."""
     p = np.round(points).astype(int)
-    p[:, 0] = np.clip(p[:, 0], 0, image.shape[0] - 1)
-    p[:, 1] = np.clip(p[:, 1], 0, image.shape[1] - 1)
-    return image[p[:, 0], p[:, 1]]
+    return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
+                 np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
 
 
 def _median_evidence(evidence, points):

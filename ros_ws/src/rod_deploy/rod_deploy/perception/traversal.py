@@ -399,14 +399,18 @@ def drop_shadow_strands(objects: list, lab_at, half_width_at, min_colour_separat
     order = sorted(range(len(objects)), key=lambda i: -objects[i].length_px())
     sub = {i: objects[i].points[::max(1, len(objects[i].points) // 60)] for i in order}
     colours = {i: median0(lab_at(sub[i])) for i in order}
+    trees, half_widths = {}, {}                  # per object, built when first needed
     drop = set()
     for rank, i in enumerate(order):
         pts = objects[i].points
         for j in order[:rank]:
             if j in drop:
                 continue
-            h = float(np.median(half_width_at(sub[j])))
-            d, _ = cKDTree(objects[j].points).query(pts, distance_upper_bound=beside_factor * h + 1.0)
+            if j not in trees:
+                trees[j] = cKDTree(objects[j].points)
+                half_widths[j] = float(median0(half_width_at(sub[j])))
+            h = half_widths[j]
+            d, _ = trees[j].query(pts, distance_upper_bound=beside_factor * h + 1.0)
             if np.mean(d <= h + 1.0) >= min_inside_fraction:
                 drop.add(i)
                 break
