@@ -79,3 +79,31 @@ def _wait_for(predicate, timeout_s=10.0, period_s=0.01):
 def wait_for():
     """``wait_for(predicate, timeout_s=10)``: poll instead of sleeping for discovery or delivery."""
     return _wait_for
+
+
+class _FiniteDifferences:
+    """Central differences of a scalar function ``E(q)`` of a vector, for checking analytic derivatives."""
+
+    @staticmethod
+    def gradient(E, q, h=1e-6):
+        import numpy as np
+        I = np.eye(len(q))
+        return np.array([(E(q + h * I[i]) - E(q - h * I[i])) / (2 * h) for i in range(len(q))])
+
+    @staticmethod
+    def hessian(E, q, h=1e-4):
+        import numpy as np
+        n = len(q)
+        I = np.eye(n)
+        H = np.zeros((n, n))
+        for i in range(n):
+            for j in range(i, n):
+                H[i, j] = H[j, i] = (E(q + h * I[i] + h * I[j]) - E(q + h * I[i] - h * I[j])
+                                     - E(q - h * I[i] + h * I[j]) + E(q - h * I[i] - h * I[j])) / (4 * h * h)
+        return H
+
+
+@pytest.fixture
+def finite_differences():
+    """``finite_differences.gradient(E, q, h=1e-6)`` and ``.hessian(E, q, h=1e-4)`` of a scalar function ``E``."""
+    return _FiniteDifferences

@@ -43,29 +43,19 @@ def _dense(r, H, which):
 
 
 @pytest.mark.parametrize('which', ['stretch', 'bend', 'twist'])
-def test_gradient_matches_central_differences(rod, which):
+def test_gradient_matches_central_differences(rod, which, finite_differences):
     q = rod['q']
     _, g, _ = _energy(rod, q, which)
-    h = 1e-6
-    I = np.eye(len(q))
-    fd = np.array([(_energy(rod, q + h * I[i], which)[0] - _energy(rod, q - h * I[i], which)[0]) / (2 * h)
-                   for i in range(len(q))])
+    fd = finite_differences.gradient(lambda v: _energy(rod, v, which)[0], q, h=1e-6)
     assert np.max(np.abs(g - fd)) < 1e-7 * max(1.0, np.max(np.abs(g)))
 
 
 @pytest.mark.parametrize('which', ['stretch', 'bend', 'twist'])
-def test_hessian_matches_second_differences_of_the_energy(rod, which):
+def test_hessian_matches_second_differences_of_the_energy(rod, which, finite_differences):
     q = rod['q']
     _, _, H = _energy(rod, q, which)
     A = _dense(rod, H, which)
-    n, h = len(q), 1e-4
-    I = np.eye(n)
-    E = lambda v: _energy(rod, v, which)[0]  # noqa: E731
-    fd = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i, n):
-            fd[i, j] = fd[j, i] = (E(q + h * I[i] + h * I[j]) - E(q + h * I[i] - h * I[j])
-                                   - E(q - h * I[i] + h * I[j]) + E(q - h * I[i] - h * I[j])) / (4 * h * h)
+    fd = finite_differences.hessian(lambda v: _energy(rod, v, which)[0], q, h=1e-4)
     assert np.allclose(A, A.T, atol=1e-10)
     assert np.max(np.abs(A - fd)) < 2e-5 * np.max(np.abs(A))
 
@@ -139,24 +129,16 @@ def table_rod():
     return rod, rod.state.q.copy(), q_old
 
 
-def test_simulator_band_assembly_matches_finite_differences(table_rod):
+def test_simulator_band_assembly_matches_finite_differences(table_rod, finite_differences):
     # the assembled gradient and band Hessian against central and second differences of the energy (frames carried
     # from the rod's state, as in a Newton iteration)
     rod, q, _ = table_rod
     E, g, H = rod.elastic(q)
-    n, h = len(q), 1e-6
-    I = np.eye(n)
-    fd_g = np.array([(rod.elastic(q + h * I[i], False)[0] - rod.elastic(q - h * I[i], False)[0]) / (2 * h)
-                     for i in range(n)])
+    En = lambda v: rod.elastic(v, False)[0]  # noqa: E731
+    fd_g = finite_differences.gradient(En, q, h=1e-6)
     assert np.max(np.abs(g - fd_g)) < 1e-7 * np.max(np.abs(g))
     A = H.to_dense()
-    h = 1e-4
-    En = lambda v: rod.elastic(v, False)[0]  # noqa: E731
-    fd_H = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i, n):
-            fd_H[i, j] = fd_H[j, i] = (En(q + h * I[i] + h * I[j]) - En(q + h * I[i] - h * I[j])
-                                       - En(q - h * I[i] + h * I[j]) + En(q - h * I[i] - h * I[j])) / (4 * h * h)
+    fd_H = finite_differences.hessian(En, q, h=1e-4)
     assert np.max(np.abs(A - fd_H)) < 2e-5 * np.max(np.abs(A))
     assert np.max(np.abs(A - A.T)) < 1e-10 * np.max(np.abs(A))
 
