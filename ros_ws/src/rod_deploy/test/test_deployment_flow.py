@@ -152,13 +152,36 @@ ROD_ARGS = ['length:=0.3', 'radius:=0.002', 'L_gb:=0.034']
 TABLE = 'table_xyz:=[0.5,-0.5,-0.55]'
 
 
-def start(exe, *params, module=None):
+def start(exe, *params, log_dir, module=None):
+    """The node as a process; its output goes to ``<log_dir>/<exe>.log`` (a pipe nobody reads until the end could
+    fill and block the process)."""
     script = os.path.join(BIN, exe)
     cmd = [script] if os.path.exists(script) else [sys.executable, '-m', module]
     cmd += ['--ros-args', '--log-level', 'warn']
     for p in params:
         cmd += ['-p', p]
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    log = open(os.path.join(log_dir, f'{exe}.log'), 'w')
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, text=True)
+    proc.log_path = log.name
+    log.close()
+    return proc
+
+
+def stop(procs, timeout_s=40):
+    """SIGINT to every process at once (as Ctrl-C in a terminal running them all); returns their exit codes and
+    the tails of their logs. A process still running after ``timeout_s`` is killed (code None)."""
+    for p in procs:
+        p.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + timeout_s
+    codes = []
+    for p in procs:
+        try:
+            codes.append(p.wait(timeout=max(0.1, deadline - time.monotonic())))
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+            codes.append(None)
+    return codes, {os.path.basename(p.log_path): open(p.log_path).read()[-3000:] for p in procs}
 
 
 def test_deployment_graph_as_processes(ros_context, wait_for, tmp_path):
@@ -168,12 +191,14 @@ def test_deployment_graph_as_processes(ros_context, wait_for, tmp_path):
         depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     request = observer.create_publisher(Path, '/deploy_request', QoSProfile(depth=1,
                                                                             reliability=ReliabilityPolicy.RELIABLE))
-    procs = [start('sim_arm', 'real_time_factor:=3.0'),
-             start('arm_command_bridge', TABLE),
-             start('pattern_perception', 'request_type:=path'),
-             start('grasp_trajectory_generator', *ROD_ARGS, 'speed_m_s:=0.05'),
+    logs = tmp_path / 'logs'
+    logs.mkdir()
+    procs = [start('sim_arm', 'real_time_factor:=3.0', log_dir=logs),
+             start('arm_command_bridge', TABLE, log_dir=logs),
+             start('pattern_perception', 'request_type:=path', log_dir=logs),
+             start('grasp_trajectory_generator', *ROD_ARGS, 'speed_m_s:=0.05', log_dir=logs),
              start('deployment_monitor', *ROD_ARGS, TABLE, f'out:={tmp_path}', 'edge_length_m:=0.02', 'dt_s:=0.05',
-                   'max_gripper_speed_m_s:=0.05', module='rod_deploy.nodes.deployment_monitor')]
+                   'max_gripper_speed_m_s:=0.05', log_dir=logs, module='rod_deploy.nodes.deployment_monitor')]
     try:
         # the monitor follows the request from pattern_perception's status: wait until it listens there, and the
         # bridge until it hears the arm (its subscription count to /joint_states does not say it has a reading)
@@ -184,11 +209,11 @@ def test_deployment_graph_as_processes(ros_context, wait_for, tmp_path):
         # processes takes up to about 3 s, ROS2_NOTES): a grace period, as no process exposes its matches
         time.sleep(3.0)
         request.publish(path_msg(LINE))
-        assert wait_for(lambda: results, timeout_s=240), [p.poll() for p in procs]
+        assert wait_for(lambda: results, timeout_s=240), [(p.poll(), open(p.log_path).read()[-2000:]) for p in procs]
         assert 'error' not in results[-1], results[-1]
         assert results[-1]['e_mean_cm'] < 1.0 and (tmp_path / 'request_001' / 'deployment.json').exists()
     finally:
-        for p in procs:
-            p.send_signal(signal.SIGINT)
-        codes = [p.wait(timeout=30) for p in procs]
-    assert codes == [0] * len(procs), [p.stderr.read()[-1000:] for p in procs]
+        codes, tails = stop(procs)
+    # every node ends cleanly on Ctrl-C (a node whose middleware teardown hangs ends with status 1 and the stacks of
+    # its threads in its log: run_node's watchdog)
+    assert codes == [0] * len(procs), (codes, tails)

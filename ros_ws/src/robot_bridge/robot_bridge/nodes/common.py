@@ -1,6 +1,7 @@
 """ROS glue shared by the nodes of every package: parameters, message-type lookup and the standard main()."""
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import math
 import sys
@@ -99,12 +100,16 @@ def message_class(msgtype: str):
         raise ValueError(f"message type '{msgtype}' is not available in this ROS installation") from None
 
 
+TEARDOWN_TIMEOUT_S = 20.0     # the middleware's teardown after node.close(): longer means it hangs
+
+
 def run_node(make_node, args=None, until=None) -> int:
     """Create a node and spin it until Ctrl-C, SIGTERM or ``until(node)`` is true; then clean up.
 
     ``make_node()`` may raise ValueError for bad parameters/inputs: it is printed as one line and the
     process exits with status 1. ``node.close()`` (if defined) runs before shutdown, so files are
-    always closed cleanly. Returns the exit status (``node.exit_code`` if the node sets one).
+    always closed cleanly. Returns the exit status (``node.exit_code`` if the node sets one). A teardown
+    that hangs after ``close()`` is ended after ``TEARDOWN_TIMEOUT_S`` with every thread's stack on stderr.
     """
     rclpy.init(args=args)
     node = None
@@ -126,9 +131,15 @@ def run_node(make_node, args=None, until=None) -> int:
     finally:
         if node is not None:
             if hasattr(node, 'close'):
-                node.close()
+                node.close()             # the node's own files and threads: never cut short
+        # From here only the middleware's teardown is left. Should it hang (CI once saw a node keep running 30 s
+        # after SIGINT, after its work was done), a watchdog outside the GIL prints every thread's stack to stderr
+        # and ends the process with status 1 instead of leaving it behind.
+        faulthandler.dump_traceback_later(TEARDOWN_TIMEOUT_S, exit=True)
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        faulthandler.cancel_dump_traceback_later()
     return int(getattr(node, 'exit_code', 0) or 0)
 
 

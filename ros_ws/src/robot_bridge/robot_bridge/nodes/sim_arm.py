@@ -55,6 +55,7 @@ from robot_bridge.sim.mujoco_loop import Controller, Effects, MeasurementNoise
 COMMAND_TOPIC = '/arm_controller/joint_trajectory'
 MAX_RATE_HZ = 1000.0
 MAX_LAG_S = 0.05        # behind the wall clock by more than this: fall back instead of catching up
+BEHIND_PAUSE_S = 2e-4   # pause per step while behind the wall clock (releases the GIL to the executor threads)
 
 
 class SimArm(Node):
@@ -123,6 +124,7 @@ class SimArm(Node):
         self._lock = threading.Lock()
         self._pending = None
         self.commands_received = 0
+        self.published = 0                    # /joint_states messages published
         self.slower_than_real_time = 0        # times the simulation fell behind the wall clock
         self.error: str | None = None
         self.trajectory_start_s: float | None = None     # simulation time at which the last command started
@@ -161,6 +163,8 @@ class SimArm(Node):
         try:
             self._simulate()
         except RuntimeError as exc:          # the simulation diverged: say so and stop publishing
+            if not self.context.ok():        # Ctrl-C: the context went away under a publish; not an error
+                return
             self.error = str(exc)
             self.get_logger().error(f'simulation stopped: {exc}')
 
@@ -193,15 +197,18 @@ class SimArm(Node):
             msg = JointState(name=self.names, position=q.tolist(), velocity=qd.tolist(), effort=tau.tolist())
             msg.header.stamp = self.sim_time_to_stamp(f.t_s)
             self.pub.publish(msg)
+            self.published += 1
             k += 1
             delay = wall0 + k * period / self.real_time_factor - time.monotonic()
             if delay > 0:
                 self._stop.wait(delay)
             else:
                 # Behind the wall clock (a loaded machine): never try to catch up in a burst, which would hold the
-                # GIL in a tight loop and starve the executor that delivers /joint_states and the commands. The
-                # simulation runs slower than real time instead; the stamps are simulation time either way.
-                time.sleep(0)
+                # GIL in a tight loop and starve the executor threads that deliver /joint_states and the commands
+                # (time.sleep(0) was not enough: CI once saw a probe in this process receive fewer than 300 messages
+                # in 20 s). A real pause each step releases the GIL to them; the simulation runs slower than real
+                # time instead, and the stamps are simulation time either way.
+                self._stop.wait(BEHIND_PAUSE_S)
                 if -delay > MAX_LAG_S:
                     wall0 -= delay
                     self.slower_than_real_time += 1
