@@ -294,3 +294,26 @@ def test_an_end_running_on_into_another_colour_is_trimmed():
     assert 283 <= trimmed.points[-1, 1] <= 286 and trimmed.points[0, 1] == 0
     same = TracedObject(pts.copy())
     assert trim_foreign_ends(same, lambda p: np.tile([50.0, 40.0], (len(p), 1)), 8.0, 12.0) is same
+
+
+@pytest.mark.parametrize('colour, length', [((230, 60, 230), 120), ((40, 200, 240), 80)])
+def test_small_rod_on_a_strongly_textured_table_is_found_in_the_evidence_tail(colour, length):
+    """A short rod on a strongly textured table: Otsu's split of the evidence separates the texture's
+    blotches (the classes differ by < 20 grey levels, segmentation alone finds nothing); the pipeline
+    splits the upper class again and finds the rod. An empty textured table still yields nothing."""
+    from rod_deploy.perception.pipeline import PerceptionError, tail_threshold
+    from rod_deploy.perception.segmentation import SegmentationError, segment
+    t = np.linspace(0, 1, 200)
+    curve = np.stack([150 + length * t, 300 + 0.5 * length * t + 10 * np.sin(3 * t)], axis=1)
+    img = render_rod_scene((480, 640), [curve], [7.0], [colour], [], background=(120, 140, 110), texture=10.0,
+                           gradient=0.2, ambient=0.5, seed=3)
+    with pytest.raises(SegmentationError, match='contrast'):
+        segment(img)
+    res = perceive(img)
+    assert len(res.objects) == 1
+    assert centreline_rms(res.objects[0].points, curve)['rms_px'] < 1.0
+    empty = render_rod_scene((480, 640), [], [], [], [], background=(120, 140, 110), texture=12.0, gradient=0.2,
+                             seed=3)
+    assert tail_threshold(empty) is None
+    with pytest.raises(PerceptionError):
+        perceive(empty)
