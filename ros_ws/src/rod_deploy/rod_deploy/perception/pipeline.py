@@ -48,7 +48,8 @@ from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig
                                                 estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
-from rod_deploy.perception.traversal import drop_shadow_strands, join_gaps, split_at_colour_changes, trace_objects
+from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
+                                             split_at_colour_changes, trace_objects, unpaired_branch_ends)
 
 
 class PerceptionError(ValueError):
@@ -170,6 +171,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     traced = trace_objects(graph, crossings)
     for o in traced:
         o.points = to_full(o.points)
+    tees = unpaired_branch_ends(crossings, to_full, f)
     traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
     traced, gaps = join_gaps(traced, w, len(crossings), config.max_gap_factor, colour_of=colour_full,
                              min_colour_separation=config.min_colour_separation,
@@ -209,6 +211,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
                                 exclude=lambda p: _in_zones(p, zones), sigma_px=config.smoothing_sigma_px)
             width = refined.width_px if np.isfinite(refined.width_px) else w
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
+            refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
+                                                  config.min_colour_separation)
         else:
             pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
             width = w
@@ -265,6 +269,27 @@ def skeleton_mask(seg: Segmentation, config: PerceptionConfig = PerceptionConfig
     half = cv2.resize(seg.mask[:2 * h2, :2 * w2].view(np.uint8) * np.uint8(255), (w2, h2),
                       interpolation=cv2.INTER_AREA) >= 128
     return half, 2
+
+
+def _place_abutting_ends(obj, points, tees, colours_at, half_width_at, w, f, min_colour_separation):
+    """Ends of ``obj`` that start at an unpaired crossing branch (a rod's end against or on another
+    rod), placed by colour (:func:`~.traversal.place_abutting_end`); the rod's own width from the mask's
+    distance map along it (median of 2 d - 1)."""
+    if obj.closed or not tees:
+        return points
+    width = None
+    for end in (0, 1):
+        traced_end = obj.points[-1 if end else 0]
+        for anchor, centre, other_width in tees:
+            if np.hypot(*(traced_end - anchor)) <= f:
+                if width is None:
+                    width = max(2.0 * float(np.median(half_width_at(points))) - 1.0, 1.0)
+                p = points if end else points[::-1]
+                p = place_abutting_end(p, anchor, centre, colours_at, width, max(other_width, w),
+                                       min_colour_separation)
+                points = p if end else p[::-1]
+                break
+    return points
 
 
 def _centreline_width(graph, dist, f, w, mismatch):
