@@ -3,7 +3,9 @@ sub-pixel refinement.
 
  1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w (replaced by
     the mask's width on the skeleton's long chains when that is ``width_mismatch`` times larger: specks of
-    a textured table bias the segmentation's 2 area / perimeter low);
+    a textured table bias the segmentation's 2 area / perimeter low); where segmentation finds no object
+    because Otsu's split only separates a strongly textured table (a small rod), the evidence's upper class
+    is split again (:func:`tail_threshold`);
  2. skeleton (Zhang-Suen thinning, :mod:`.thinning`; of the mask at half resolution when strokes are at
     least ``half_resolution_min_width_px`` wide) and its graph (:mod:`.skeleton_graph`); spurs shorter than
     ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
@@ -26,7 +28,9 @@ sub-pixel refinement.
  5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
-    ends one half-width inside the boundary, arc-length resampling every ``step_px``.
+    ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
+    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), arc-length resampling
+    every ``step_px``.
 
 Objects are numbered by decreasing length. An open path starts at its end with the smaller column
 (leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in

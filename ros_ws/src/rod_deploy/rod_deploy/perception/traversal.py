@@ -441,13 +441,13 @@ def place_abutting_end(points: np.ndarray, anchor, centre, colours_at, width_px:
     the branch anchor, short of the end, or the evidence-based end placement runs it on through the other
     rod. Along the path's tangent (over 1.5 widths) from half a width before the anchor, up to its own width
     + ``other_width_px`` + 2 px past the crossing centre (its end may lie on the other rod, its end cap
-    beyond it), the first of two successive samples whose
-    CIELAB a*b* is farther than ``foreign_factor`` ``min_separation`` from the path's own colour (its
-    median between 2 and 6 widths from the anchor) is the rod's boundary. Past the crossing centre the
-    rod lies on top and its end cap shows: the end goes half a width inside the boundary, on that ray.
-    Before it, the other rod's colour begins and the rod's end is hidden under it, somewhere between its
-    near and far edges: the end goes half a width before the centre (the middle of that range). Where no colour boundary shows (rods of one colour) the path is returned as
-    it is. Units: pixels, (row, col)."""
+    beyond it), the first of two successive samples whose CIELAB a*b* is farther than ``foreign_factor``
+    ``min_separation`` from the path's own colour (its median between 2 and 6 widths from the anchor) is
+    the rod's boundary. Past the crossing centre the rod lies on top and its end cap shows: the end goes
+    half a width inside the boundary, on that ray. Before it, the other rod's colour begins and the rod's
+    end is hidden under it, somewhere between its near and far edges: the end goes half a width before the
+    centre (the middle of that range). Where no colour boundary shows (rods of one colour) the path is
+    returned as it is. Units: pixels, (row, col)."""
     pts = np.asarray(points, float)
     if len(pts) < 4:
         return pts
