@@ -275,27 +275,6 @@ def skeleton_mask(seg: Segmentation, config: PerceptionConfig = PerceptionConfig
     return half, 2
 
 
-def _place_abutting_ends(obj, points, tees, colours_at, half_width_at, w, f, min_colour_separation):
-    """Ends of ``obj`` that start at an unpaired crossing branch (a rod's end against or on another
-    rod), placed by colour (:func:`~.traversal.place_abutting_end`); the rod's own width from the mask's
-    distance map along it (median of 2 d - 1)."""
-    if obj.closed or not tees:
-        return points
-    width = None
-    for end in (0, 1):
-        traced_end = obj.points[-1 if end else 0]
-        for anchor, centre, other_width in tees:
-            if np.hypot(*(traced_end - anchor)) <= f:
-                if width is None:
-                    width = max(2.0 * float(np.median(half_width_at(points))) - 1.0, 1.0)
-                p = points if end else points[::-1]
-                p = place_abutting_end(p, anchor, centre, colours_at, width, max(other_width, w),
-                                       min_colour_separation)
-                points = p if end else p[::-1]
-                break
-    return points
-
-
 def _centreline_width(graph, dist, f, w, mismatch):
     """The stroke width: the segmentation's 2 area / perimeter ``w``, unless the skeleton's chains longer
     than 6 w, pooled, sit in a mask more than ``mismatch`` times wider (median of 2 d - 1 on them, d the distance to the
@@ -358,3 +337,24 @@ def _canonical_order(objects, decisions):
         d.over = None if d.over is None else new_id[d.over]
         d.spans = ()
     return [objects[i] for i in order], decisions
+
+
+def _place_abutting_ends(obj, points, tees, colours_at, half_width_at, w, f, min_colour_separation):
+    """Ends of ``obj`` that start at an unpaired crossing branch (a rod's end against or on another
+    rod), placed by colour (:func:`~.traversal.place_abutting_end`); the rod's own width from the mask's
+    distance map along it (median of 2 d - 1)."""
+    if obj.closed or not tees:
+        return points
+    width = None
+    for end in (0, 1):
+        traced_end = obj.points[-1 if end else 0]
+        for anchor, centre, other_width in tees:
+            if np.hypot(*(traced_end - anchor)) <= f:
+                if width is None:
+                    width = max(2.0 * float(np.median(half_width_at(points))) - 1.0, 1.0)
+                p = points if end else points[::-1]
+                p = place_abutting_end(p, anchor, centre, colours_at, width, max(other_width, w),
+                                       min_colour_separation)
+                points = p if end else p[::-1]
+                break
+    return points
