@@ -15,9 +15,9 @@ error (both resampled to 50 points by arc length, the better direction) [px]; pe
 two different rods whether the perceived over/under (where decided) is right (the order at self crossings
 is decided too, but not scored here). Development seeds (the failures of which were looked at to make the
 rules): from ``DEV_BASES`` (the first round's development seeds 1000.., its held-out seeds 900000.., and
-the second round's held-out seeds 4200000.., which became development data once looked at); held-out
-seeds of the current round, run once, after the rules were fixed: from ``HELDOUT_BASE`` (never used
-before that run).
+the second and third rounds' held-out seeds 4200000.. and 5300000.., which became development data once
+looked at); held-out seeds of the current round, run once, after the rules were fixed: from
+``HELDOUT_BASE`` (never used before that run).
 Scenes are cached in out/crossing_scenes (generation takes ~0.5-20 s each: shapes are drawn until they
 have the kind's crossings).
 """
@@ -37,14 +37,19 @@ from rod_deploy.perception.evaluation import arc_length_error, centreline_rms
 from rod_deploy.perception.pipeline import PerceptionError, perceive
 
 ROOT = Path(__file__).resolve().parent.parent
-DEV_BASES = (1000, 900_000, 4_200_000)   # development: every seed looked at so far
-HELDOUT_BASE = 5_300_000         # held out of the third round (issue #12, over/under regression): run once, at the end
+DEV_BASES = (1000, 900_000, 4_200_000, 5_300_000)   # development: every seed looked at so far
+HELDOUT_BASE = 6_400_000         # held out of the fourth round (issue #12 item 1): run once, at the end
 CACHE = ROOT / 'out' / 'crossing_scenes'
 HISTORY = ['### Before the rules of this round', '',
            'The development scenes with the second round\'s pipeline (the edge test with one width, a window '
            'fixed at the crossing point and 4 px tangents; no end trimming): seeds 1000.. right count 54/56, '
            'within both bars 49/56, over/under 44 / 0 / 2; 900000.. 52/56, 41/56, 44 / 1 / 6; 4200000.. (the '
-           'second round\'s held-out set) 54/56, 43/56, 35 / 5 / 4.', '']
+           'second round\'s held-out set) 54/56, 43/56, 35 / 5 / 4.', '',
+           'The development scenes with the third round\'s pipeline (main before the fourth round: no re-split of '
+           'the evidence tail, rod ends against or on another rod left at the skeleton\'s anchor): seeds 1000.. '
+           'right count 55/56, within both bars 48/56, over/under 45 / 0 / 1; 900000.. 51/56, 41/56, 44 / 0 / 7; '
+           '4200000.. 54/56, 45/56, 34 / 0 / 10; 5300000.. (the third round\'s held-out set) 52/56, 46/56, '
+           '43 / 1 / 5.', '']
 
 
 def scene(kind, seed):

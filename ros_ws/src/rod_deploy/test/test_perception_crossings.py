@@ -294,3 +294,47 @@ def test_an_end_running_on_into_another_colour_is_trimmed():
     assert 283 <= trimmed.points[-1, 1] <= 286 and trimmed.points[0, 1] == 0
     same = TracedObject(pts.copy())
     assert trim_foreign_ends(same, lambda p: np.tile([50.0, 40.0], (len(p), 1)), 8.0, 12.0) is same
+
+
+@pytest.mark.parametrize('colour, length', [((230, 60, 230), 120), ((40, 200, 240), 80)])
+def test_small_rod_on_a_strongly_textured_table_is_found_in_the_evidence_tail(colour, length):
+    """A short rod on a strongly textured table: Otsu's split of the evidence separates the texture's
+    blotches (the classes differ by < 20 grey levels, segmentation alone finds nothing); the pipeline
+    splits the upper class again and finds the rod. An empty textured table still yields nothing."""
+    from rod_deploy.perception.pipeline import PerceptionError, tail_threshold
+    from rod_deploy.perception.segmentation import SegmentationError, segment
+    t = np.linspace(0, 1, 200)
+    curve = np.stack([150 + length * t, 300 + 0.5 * length * t + 10 * np.sin(3 * t)], axis=1)
+    img = render_rod_scene((480, 640), [curve], [7.0], [colour], [], background=(120, 140, 110), texture=10.0,
+                           gradient=0.2, ambient=0.5, seed=3)
+    with pytest.raises(SegmentationError, match='contrast'):
+        segment(img)
+    res = perceive(img)
+    assert len(res.objects) == 1
+    assert centreline_rms(res.objects[0].points, curve)['rms_px'] < 1.0
+    empty = render_rod_scene((480, 640), [], [], [], [], background=(120, 140, 110), texture=12.0, gradient=0.2,
+                             seed=3)
+    assert tail_threshold(empty) is None
+    with pytest.raises(PerceptionError):
+        perceive(empty)
+
+
+@pytest.mark.parametrize('past_px, angle_deg', [(3.0, 0.0), (5.0, 20.0)])
+def test_rod_end_lying_on_another_rod_is_placed_by_colour(past_px, angle_deg):
+    """A rod whose end lies on top of another rod of another colour leaves a T in the skeleton: its path
+    starts at the unpaired branch's anchor, short of the end (or the evidence-based end placement runs it
+    on through the other rod). Its end is placed half a width inside where its own colour ends."""
+    b = np.stack([np.full(400, 200.0), np.linspace(40, 560, 400)], axis=1)
+    length = 150.0 + past_px
+    t = np.linspace(0, 1, 300)
+    a = np.stack([50.0 + length * t, 300.0 + np.tan(np.radians(angle_deg)) * length * t], axis=1)
+    cs = curve_crossings([a, b])
+    for c in cs:
+        c.over = 0                                  # a on top
+    img = render_rod_scene((320, 600), [a, b], [12.0, 7.0], [(200, 80, 200), (30, 30, 190)], cs,
+                           background=(110, 120, 100), texture=4.0, seed=2)
+    res = perceive(img)
+    assert len(res.objects) == 2
+    end_error = min(min(np.linalg.norm(o.points[0] - a[-1]), np.linalg.norm(o.points[-1] - a[-1]))
+                    for o in res.objects)
+    assert end_error < 4.0                          # without the rule: 13-18 px

@@ -3,7 +3,9 @@ sub-pixel refinement.
 
  1. segmentation (:mod:`.segmentation`): mask, foreground evidence, rough stroke width w (replaced by
     the mask's width on the skeleton's long chains when that is ``width_mismatch`` times larger: specks of
-    a textured table bias the segmentation's 2 area / perimeter low);
+    a textured table bias the segmentation's 2 area / perimeter low); where segmentation finds no object
+    because Otsu's split only separates a strongly textured table (a small rod), the evidence's upper class
+    is split again (:func:`tail_threshold`);
  2. skeleton (Zhang-Suen thinning, :mod:`.thinning`; of the mask at half resolution when strokes are at
     least ``half_resolution_min_width_px`` wide) and its graph (:mod:`.skeleton_graph`); spurs shorter than
     ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
@@ -26,7 +28,9 @@ sub-pixel refinement.
  5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
-    ends one half-width inside the boundary, arc-length resampling every ``step_px``.
+    ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
+    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), arc-length resampling
+    every ``step_px``.
 
 Objects are numbered by decreasing length. An open path starts at its end with the smaller column
 (leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in
@@ -36,7 +40,7 @@ mapped back to full-resolution pixels. Units: pixels, points (row, col), integer
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -44,11 +48,12 @@ import numpy as np
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
 from rod_deploy.perception.crossing_order import colour_sampler, decide_crossings
-from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, as_bgr,
-                                                segment)
+from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
+                                                estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
-from rod_deploy.perception.traversal import drop_shadow_strands, join_gaps, split_at_colour_changes, trace_objects
+from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
+                                             split_at_colour_changes, trace_objects, unpaired_branch_ends)
 
 
 class PerceptionError(ValueError):
@@ -128,7 +133,13 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     try:
         seg = segment(bgr, config.segmentation)
     except SegmentationError as exc:
-        raise PerceptionError(str(exc)) from None
+        t_tail = tail_threshold(bgr, config.segmentation)
+        if t_tail is None:
+            raise PerceptionError(str(exc)) from None
+        try:
+            seg = segment(bgr, replace(config.segmentation, threshold=t_tail))
+        except SegmentationError:
+            raise PerceptionError(str(exc)) from None
     w = seg.stroke_width_px
     t1 = time.perf_counter()
     timings['segmentation'] = (t1 - t0) * 1e3
@@ -164,6 +175,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     traced = trace_objects(graph, crossings)
     for o in traced:
         o.points = to_full(o.points)
+    tees = unpaired_branch_ends(crossings, to_full, f)
     traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
     traced, gaps = join_gaps(traced, w, len(crossings), config.max_gap_factor, colour_of=colour_full,
                              min_colour_separation=config.min_colour_separation,
@@ -203,6 +215,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
                                 exclude=lambda p: _in_zones(p, zones), sigma_px=config.smoothing_sigma_px)
             width = refined.width_px if np.isfinite(refined.width_px) else w
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
+            refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
+                                                  config.min_colour_separation)
         else:
             pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
             width = w
@@ -217,6 +231,36 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         d.position = d.position / scale
     timings['total'] = (time.perf_counter() - t0) * 1e3
     return PerceptionResult(objects, decisions, seg, tuple(shape), scale, timings)
+
+
+def tail_threshold(bgr: np.ndarray, config: SegmentationConfig = SegmentationConfig(), max_levels: int = 3):
+    """An evidence threshold for a small rod on a strongly textured table, or None. When the rods cover a
+    tiny part of the image, Otsu's split of the evidence separates the table's texture from the rest (the
+    two classes then differ by less than ``min_contrast`` and segmentation finds nothing); the rods are in
+    the upper class's tail. So the upper class is split again by Otsu, up to ``max_levels`` times, and the
+    first split whose two parts (above it; between it and the previous split) differ by at least
+    ``min_contrast`` grey levels is the threshold. A texture's tail thins out smoothly (its splits differ
+    by ~10 grey levels on the textured tables of the crossing scenes, 35-59 where a rod is there)."""
+    if config.threshold is not None:
+        return None
+    s = foreground_evidence(bgr, estimate_background(bgr, config.background_block_px), config.method)
+    sub = np.ascontiguousarray(s[::2, ::2]) if min(s.shape) >= 64 else s
+    hist = cv2.calcHist([sub], [0], None, [256], [0, 256]).ravel().astype(np.float64)
+    levels = np.arange(256)
+    t = -1.0
+    for _ in range(max_levels + 1):
+        part = hist.copy()
+        part[:int(t) + 1] = 0.0
+        if part.sum() == 0:
+            return None
+        t_prev, t = t, _otsu(part)
+        upper, lower = part * (levels > t), part * (levels <= t)
+        if upper.sum() == 0 or lower.sum() == 0:
+            return None
+        gap = (upper * levels).sum() / upper.sum() - (lower * levels).sum() / lower.sum()
+        if t_prev >= 0 and gap >= config.min_contrast:
+            return float(t)
+    return None
 
 
 def skeleton_mask(seg: Segmentation, config: PerceptionConfig = PerceptionConfig()):
@@ -293,3 +337,24 @@ def _canonical_order(objects, decisions):
         d.over = None if d.over is None else new_id[d.over]
         d.spans = ()
     return [objects[i] for i in order], decisions
+
+
+def _place_abutting_ends(obj, points, tees, colours_at, half_width_at, w, f, min_colour_separation):
+    """Ends of ``obj`` that start at an unpaired crossing branch (a rod's end against or on another
+    rod), placed by colour (:func:`~.traversal.place_abutting_end`); the rod's own width from the mask's
+    distance map along it (median of 2 d - 1)."""
+    if obj.closed or not tees:
+        return points
+    width = None
+    for end in (0, 1):
+        traced_end = obj.points[-1 if end else 0]
+        for anchor, centre, other_width in tees:
+            if np.hypot(*(traced_end - anchor)) <= f:
+                if width is None:
+                    width = max(2.0 * float(np.median(half_width_at(points))) - 1.0, 1.0)
+                p = points if end else points[::-1]
+                p = place_abutting_end(p, anchor, centre, colours_at, width, max(other_width, w),
+                                       min_colour_separation)
+                points = p if end else p[::-1]
+                break
+    return points

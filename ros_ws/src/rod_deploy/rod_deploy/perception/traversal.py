@@ -421,3 +421,64 @@ def drop_shadow_strands(objects: list, lab_at, half_width_at, min_colour_separat
                 drop.add(i)
                 break
     return [o for k, o in enumerate(objects) if k not in drop]
+
+
+def unpaired_branch_ends(crossings: list, to_full=lambda p: p, scale: float = 1.0) -> list:
+    """(anchor, crossing centre, widest rod width) of every branch left unpaired at a crossing, in the
+    coordinates ``to_full`` maps to (``scale``: full-resolution pixels per processing pixel): an object that
+    starts there is a rod whose end lies against or on another rod (a T in the skeleton)."""
+    out = []
+    for c in crossings:
+        for i in c.unpaired():
+            out.append((to_full(c.branches[i].anchor), to_full(c.centre), scale * c.width_px))
+    return out
+
+
+def place_abutting_end(points: np.ndarray, anchor, centre, colours_at, width_px: float, other_width_px: float,
+                       min_separation: float, foreign_factor: float = 2.5, step_px: float = 0.5):
+    """The end of an open path (``points[-1]``) that starts at an unpaired branch of a crossing (its rod's
+    end lies against the side of another rod, or on top of it), placed by colour: the skeleton stops it at
+    the branch anchor, short of the end, or the evidence-based end placement runs it on through the other
+    rod. Along the path's tangent (over 1.5 widths) from half a width before the anchor, up to its own width
+    + ``other_width_px`` + 2 px past the crossing centre (its end may lie on the other rod, its end cap
+    beyond it), the first of two successive samples whose CIELAB a*b* is farther than ``foreign_factor``
+    ``min_separation`` from the path's own colour (its median between 2 and 6 widths from the anchor) is
+    the rod's boundary. Past the crossing centre the rod lies on top and its end cap shows: the end goes
+    half a width inside the boundary, on that ray. Before it, the other rod's colour begins and the rod's
+    end is hidden under it, somewhere between its near and far edges: the end goes half a width before the
+    centre (the middle of that range). Where no colour boundary shows (rods of one colour) the path is
+    returned as it is. Units: pixels, (row, col)."""
+    pts = np.asarray(points, float)
+    if len(pts) < 4:
+        return pts
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    ia = int(np.argmin(np.hypot(pts[:, 0] - anchor[0], pts[:, 1] - anchor[1])))
+    sa = s[ia]
+    body = (s >= sa - 6.0 * width_px) & (s <= sa - 2.0 * width_px)
+    if body.sum() < 3:
+        return pts
+    own = median0(colours_at(pts[body]))
+    sq = sa - 0.5 * width_px
+    if sq <= 0.0:
+        return pts
+    q = np.array([np.interp(sq, s, pts[:, 0]), np.interp(sq, s, pts[:, 1])])
+    sb = max(sq - 1.5 * width_px, 0.0)
+    t = q - np.array([np.interp(sb, s, pts[:, 0]), np.interp(sb, s, pts[:, 1])])
+    nt = float(np.linalg.norm(t))
+    if nt < 1e-6:
+        return pts
+    t /= nt
+    dc = float(np.dot(np.asarray(centre, float) - q, t))
+    steps = np.arange(0.0, max(dc, 0.0) + other_width_px + width_px + 2.0 + 1e-9, step_px)
+    ray = q[None, :] + steps[:, None] * t[None, :]
+    foreign = np.linalg.norm(colours_at(ray) - own, axis=1) > foreign_factor * min_separation
+    run = foreign[:-1] & foreign[1:]
+    if not run.any():
+        return pts
+    k = int(np.argmax(run))
+    end = max(max(steps[k] - 0.5 * step_px, dc) - 0.5 * width_px, 0.0)
+    extra = np.arange(1.0, end + 1e-9, 1.0)
+    if extra.size == 0 or extra[-1] < end - 1e-6:
+        extra = np.append(extra, end)
+    extra = extra[extra > 1e-6]
+    return np.vstack([pts[s < sq], q[None, :], q[None, :] + extra[:, None] * t[None, :]])
