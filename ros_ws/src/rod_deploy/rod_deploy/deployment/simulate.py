@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from rod_deploy.physics.der_simulator import DiscreteElasticRod, RodParameters
+from rod_deploy.physics.der_simulator import DiscreteElasticRod, NewtonNotConverged, RodParameters
 from rod_deploy.physics.reference_frames import parallel_transport, signed_angle
 from rod_deploy.planning.rod_description import RodDescription
 
@@ -64,6 +64,9 @@ class SimulationSettings:
     #: the rod's rest length is its length L (True), not the stretched hanging length L + rho g L^2 / (2 E) it had
     #: by default (False: 5.0 mm longer for the paper's rod #3); a clamped start implies True
     exact_rest_length: bool = False
+    #: a step whose Newton iteration does not converge is never accepted: it is retried as two half steps, down to
+    #: dt_s / 2**max_step_halvings, then the simulation fails with a DeploymentError
+    max_step_halvings: int = 6
 
 
 @dataclass
@@ -78,6 +81,9 @@ class DeploymentResult:
     wall_time_s: float
     friction: float
     settings: SimulationSettings = field(repr=False, default=None)
+    max_newton_iterations: int = 0   # in any accepted step
+    halved_steps: int = 0            # steps of dt_s whose Newton did not converge and were retried as half steps
+    smallest_step_s: float = 0.0     # the smallest (sub)step taken
 
 
 def is_hanging_pose(position, quaternion, rod: RodDescription, tol_m=0.01, tol_rad=0.05):
@@ -286,7 +292,26 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     rod_model.static_solve(tol=1e-8, max_iter=50)
     total = ts[-1] + settings.settle_s
     steps = int(math.ceil(total / settings.dt_s))
-    iterations = 0
+    stats = {'iterations': 0, 'max_iterations': 0, 'halved': 0, 'smallest': settings.dt_s}
+
+    def advance(dt, halvings):
+        """One step of dt; a step whose Newton does not converge is retried as two half steps (the state is left
+        unchanged by the failed attempt), never accepted."""
+        try:
+            it = rod_model.step(dt)
+        except NewtonNotConverged as e:
+            if halvings >= settings.max_step_halvings:
+                raise DeploymentError(f'the rod simulation did not converge at t = {e.time:.4f} s, even with steps of '
+                                      f'{dt:.3g} s (dt_s / 2^{halvings}): {e}') from None
+            if halvings == 0:
+                stats['halved'] += 1
+            advance(0.5 * dt, halvings + 1)
+            advance(0.5 * dt, halvings + 1)
+            return
+        stats['iterations'] += it
+        stats['max_iterations'] = max(stats['max_iterations'], it)
+        stats['smallest'] = min(stats['smallest'], dt)
+
     path = []
     for k in range(steps):
         now = (k + 1) * settings.dt_s
@@ -295,7 +320,9 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
             del rod_model._prescribed[tuple(free_end.tolist())]
             rod_model.fixed[free_end] = False
         try:
-            iterations += rod_model.step(settings.dt_s)
+            advance(settings.dt_s, 0)
+        except DeploymentError:
+            raise
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
             raise DeploymentError(f'the rod simulation failed at t = {now:.3f} s: {e}') from None
         if not np.all(np.isfinite(rod_model.state.q)):
@@ -308,5 +335,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(final)
     deployed = final[:k_end, :2]
     return DeploymentResult(deployed_xy=deployed, nodes=final, gripper_path=np.array(path), start_xy=start,
-                            lead_in_rows=n_lead, steps=steps, newton_iterations=iterations,
-                            wall_time_s=time.perf_counter() - t_wall, friction=friction, settings=settings)
+                            lead_in_rows=n_lead, steps=steps, newton_iterations=stats['iterations'],
+                            wall_time_s=time.perf_counter() - t_wall, friction=friction, settings=settings,
+                            max_newton_iterations=stats['max_iterations'], halved_steps=stats['halved'],
+                            smallest_step_s=stats['smallest'])
