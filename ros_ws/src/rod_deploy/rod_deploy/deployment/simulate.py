@@ -9,8 +9,11 @@ The free end is held in place during the lead-in - the straight line on which th
 after it (``hold_free_end='always'`` keeps it pinned, as the paper does for a rope on a pattern whose start is curved:
 a free end carries no moment, so it cannot stay curved; a pin does not carry one either: the experiment option
 ``clamp_start_xy`` holds the first nodes on given points, position and direction, a start that carries a moment).
-The rod's rest length is the stretched hanging length unless ``exact_rest_length`` (its own length L; the default
-keeps the tables' set-up, 0.3 % longer). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+The rod's rest length is its own length L (CONTRACTS.md section 4: the rod's length is its material length); the
+first static solve stretches it by its weight up to the hanging pose, L + h + rho g L^2 / (2 E). (Until this round
+the rest length was the stretched hanging length, 0.3 % too long for rod #3 and 2.4 % for rod #1: the hanging rod
+then stood on its free end, its lower half compressed, an unstable straight equilibrium whose buckling direction at
+the start of the lead-in was decided by the time step.) The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
 The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
@@ -61,9 +64,6 @@ class SimulationSettings:
     #: experiment: (k, 2) points [m], one edge apart, where the first k nodes lie and stay all along (k >= 2: a
     #: clamped start, position and direction, that carries a bending moment, unlike a pinned or free end); None: off
     clamp_start_xy: tuple | None = None
-    #: the rod's rest length is its length L (True), not the stretched hanging length L + rho g L^2 / (2 E) it had
-    #: by default (False: 5.0 mm longer for the paper's rod #3); a clamped start implies True
-    exact_rest_length: bool = False
     #: a step whose Newton iteration does not converge is never accepted: it is retried as two half steps, down to
     #: dt_s / 2**max_step_halvings, then the simulation fails with a DeploymentError
     max_step_halvings: int = 6
@@ -248,17 +248,16 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     s = np.linspace(0.0, L, n_edges + 1)
     p0, R0 = gripper(0.0)
     free = np.array([start[0], start[1], h])
-    nodes = free[None] + (s / L)[:, None] * (p0 - free)[None]     # straight to the hanging pose, uniformly stretched
+    nodes = np.repeat(free[None], n_edges + 1, axis=0)
     n_clamp = 0
     if clamp_xy is not None:
         n_clamp = _check_clamp(clamp_xy, L / n_edges, n_edges)
         nodes[:n_clamp] = np.column_stack([clamp_xy, np.full(n_clamp, h)])
-    if settings.exact_rest_length or n_clamp:
-        # the rod at its own length L (edges L / N), straight from the free end (or the last clamped node) towards
-        # the hanging pose; the first static solve brings the held nodes up to it, stretching the rod by its weight
-        k = max(n_clamp - 1, 0)
-        u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
-        nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
+    # the rod at its own length L (edges of rest length L / N), straight from the free end (or the last clamped node)
+    # towards the hanging pose; the first static solve brings the held nodes up to it, stretching the rod by its weight
+    k = max(n_clamp - 1, 0)
+    u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
+    nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
     params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
     rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)
