@@ -19,22 +19,12 @@ import time
 
 import numpy as np
 
-from deployment_table import RODS, all_patterns
+from deployment_table import RODS, all_patterns, laid_strain
 from results_dir import add_results_argument, results_path
 from rod_deploy.deployment.metrics import eq17_error
 from rod_deploy.deployment.simulate import FRICTION_LEVELS, SimulationSettings, simulate_deployment
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
-
-
-def laid_strain(res, rod_length_m):
-    """Arc length of the deployed nodes over their material length (node index x L / N), minus 1."""
-    xy = res.deployed_xy
-    if len(xy) < 2:
-        return float('nan')
-    arc = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
-    n_edges = len(res.nodes) - 1
-    return arc / ((len(xy) - 1) * rod_length_m / n_edges) - 1.0
 
 
 def main():
