@@ -19,8 +19,8 @@ The deployed shapes are saved (npz) next to the table for plots.
 
 Second round (why curved starts turn): options applied to every run, ``--clamp-nodes K`` (the first K nodes held on
 the planned start all along: a start that carries a moment, ``SimulationSettings.clamp_start_xy``),
-``--exact-length`` (the rod at its own rest length L, ``exact_rest_length``), ``--friction-velocity``, ``--dt``,
-``--gripper-speed``; variants ``achievable`` (the planner's current friction-limited start) and ``remainder`` (the
+``--friction-velocity``, ``--dt``, ``--gripper-speed`` (``--exact-length``, the rod at its own rest length, is gone:
+that is the simulator's only set-up since h-simcheck; the results files with it predate that); variants ``achievable`` (the planner's current friction-limited start) and ``remainder`` (the
 paper's remainder, ``with_remainder``: rod laid before P(0), cut off the deployed curve before scoring); and
 ``--statics S1,S2,..`` (no time stepping: the DER statics at those contact points against the continuum grasp the
 planner assumed, ``statics_check``; writes ``deployment_statics*.md``).
@@ -276,9 +276,6 @@ def main():
                     help='hold the first K nodes on the planned start all along (K >= 2: a clamped start that '
                          'carries a moment; SimulationSettings.clamp_start_xy); 0: off')
     ap.add_argument('--friction-velocity', type=float, default=None, help='friction regularisation [m/s] (all runs)')
-    ap.add_argument('--exact-length', action='store_true',
-                    help="the rod's rest length L, not the stretched hanging length (SimulationSettings."
-                         "exact_rest_length; implied by --clamp-nodes)")
     ap.add_argument('--statics', default=None, metavar='S1,S2,...',
                     help='instead of deployments: the statics check (statics_check) at these arc lengths [m]')
     ap.add_argument('--dt', type=float, default=None, help='time step [s] (all runs)')
@@ -301,8 +298,6 @@ def main():
         ap.error('--clamp-nodes must be 0 (off) or at least 2')
     overrides = {k: v for k, v in (('friction_velocity_m_s', args.friction_velocity), ('dt_s', args.dt),
                                    ('max_gripper_speed_m_s', args.gripper_speed)) if v is not None}
-    if args.exact_length:
-        overrides['exact_rest_length'] = True
     tag = f'_{args.tag}' if args.tag else ''
     out = results_path(args, f'deployment_decomposition{tag}.md')
     if args.statics:
@@ -337,7 +332,6 @@ def main():
              f'--rod {args.rod} --patterns {args.patterns} --variants {args.variants}'
              f'{f" --truncate-m {args.truncate_m}" if args.truncate_m else ""}'
              f'{f" --clamp-nodes {args.clamp_nodes}" if args.clamp_nodes else ""}'
-             f'{" --exact-length" if args.exact_length else ""}'
              + ''.join(f' --{k} {v}' for k, v in (('friction-velocity', args.friction_velocity), ('dt', args.dt),
                                                   ('gripper-speed', args.gripper_speed)) if v is not None)
              + '`', '',

@@ -96,6 +96,15 @@ def published_trajectory(name):
     return trajectory_times(d[:, :3], q, 0.01, 0.2), d[:, :3], q
 
 
+def laid_strain(res, rod_length_m):
+    """The deployed nodes' arc length over their material length (node index x L / N), minus 1."""
+    xy = res.deployed_xy
+    if len(xy) < 2:
+        return float('nan')
+    arc = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
+    return arc / ((len(xy) - 1) * rod_length_m / (len(res.nodes) - 1)) - 1.0
+
+
 def write_table(out, rows, t_all, args):
     lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
@@ -163,7 +172,8 @@ def main():
                             friction_velocity_m_s=args.friction_velocity))
                         e = eq17_error(P, res.deployed_xy)
                         row = (rod_id, fr, name, method, e['e_mean_cm'], e['sigma_cm'], e['coverage'],
-                               res.wall_time_s, '')
+                               res.wall_time_s, f'laid strain {100 * laid_strain(res, rod.length_m):.2f} %; Newton '
+                               f'max {res.max_newton_iterations}, halved steps {res.halved_steps}')
                         if args.plots:
                             from rod_deploy.deployment.plots import plot_deployment
                             tag = f'_{start_used}' if method in ('nn', 'numeric') else ''

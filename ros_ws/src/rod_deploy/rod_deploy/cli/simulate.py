@@ -85,6 +85,7 @@ def run(args) -> int:
     summary = {'deployed': str(args.out), 'deployed_points': int(len(result.deployed_xy)),
                'deployed_length_m': float(np.sum(np.linalg.norm(np.diff(result.deployed_xy, axis=0), axis=1))),
                'friction': result.friction, 'steps': result.steps, 'newton_iterations': result.newton_iterations,
+               'max_newton_iterations': result.max_newton_iterations, 'halved_steps': result.halved_steps,
                'wall_time_s': round(result.wall_time_s, 2)}
     if args.plot:
         from rod_deploy.deployment.plots import plot_deployment

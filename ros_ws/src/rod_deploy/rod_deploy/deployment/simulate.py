@@ -9,8 +9,11 @@ The free end is held in place during the lead-in - the straight line on which th
 after it (``hold_free_end='always'`` keeps it pinned, as the paper does for a rope on a pattern whose start is curved:
 a free end carries no moment, so it cannot stay curved; a pin does not carry one either: the experiment option
 ``clamp_start_xy`` holds the first nodes on given points, position and direction, a start that carries a moment).
-The rod's rest length is the stretched hanging length unless ``exact_rest_length`` (its own length L; the default
-keeps the tables' set-up, 0.3 % longer). The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+The rod's rest length is its own length L (CONTRACTS.md section 4: the rod's length is its material length); the
+first static solve stretches it by its weight up to the hanging pose, L + h + rho g L^2 / (2 E). (Until this round
+the rest length was the stretched hanging length, 0.3 % too long for rod #3 and 2.4 % for rod #1: the hanging rod
+then stood on its free end, its lower half compressed, an unstable straight equilibrium whose buckling direction at
+the start of the lead-in was decided by the time step.) The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
 The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
@@ -29,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from rod_deploy.physics.der_simulator import DiscreteElasticRod, RodParameters
+from rod_deploy.physics.der_simulator import DiscreteElasticRod, NewtonNotConverged, RodParameters
 from rod_deploy.physics.reference_frames import parallel_transport, signed_angle
 from rod_deploy.planning.rod_description import RodDescription
 
@@ -61,9 +64,9 @@ class SimulationSettings:
     #: experiment: (k, 2) points [m], one edge apart, where the first k nodes lie and stay all along (k >= 2: a
     #: clamped start, position and direction, that carries a bending moment, unlike a pinned or free end); None: off
     clamp_start_xy: tuple | None = None
-    #: the rod's rest length is its length L (True), not the stretched hanging length L + rho g L^2 / (2 E) it had
-    #: by default (False: 5.0 mm longer for the paper's rod #3); a clamped start implies True
-    exact_rest_length: bool = False
+    #: a step whose Newton iteration does not converge is never accepted: it is retried as two half steps, down to
+    #: dt_s / 2**max_step_halvings, then the simulation fails with a DeploymentError
+    max_step_halvings: int = 6
 
 
 @dataclass
@@ -78,6 +81,9 @@ class DeploymentResult:
     wall_time_s: float
     friction: float
     settings: SimulationSettings = field(repr=False, default=None)
+    max_newton_iterations: int = 0   # in any accepted step
+    halved_steps: int = 0            # steps of dt_s whose Newton did not converge and were retried as half steps
+    smallest_step_s: float = 0.0     # the smallest (sub)step taken
 
 
 def is_hanging_pose(position, quaternion, rod: RodDescription, tol_m=0.01, tol_rad=0.05):
@@ -242,17 +248,16 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     s = np.linspace(0.0, L, n_edges + 1)
     p0, R0 = gripper(0.0)
     free = np.array([start[0], start[1], h])
-    nodes = free[None] + (s / L)[:, None] * (p0 - free)[None]     # straight to the hanging pose, uniformly stretched
+    nodes = np.repeat(free[None], n_edges + 1, axis=0)
     n_clamp = 0
     if clamp_xy is not None:
         n_clamp = _check_clamp(clamp_xy, L / n_edges, n_edges)
         nodes[:n_clamp] = np.column_stack([clamp_xy, np.full(n_clamp, h)])
-    if settings.exact_rest_length or n_clamp:
-        # the rod at its own length L (edges L / N), straight from the free end (or the last clamped node) towards
-        # the hanging pose; the first static solve brings the held nodes up to it, stretching the rod by its weight
-        k = max(n_clamp - 1, 0)
-        u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
-        nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
+    # the rod at its own length L (edges of rest length L / N), straight from the free end (or the last clamped node)
+    # towards the hanging pose; the first static solve brings the held nodes up to it, stretching the rod by its weight
+    k = max(n_clamp - 1, 0)
+    u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
+    nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
     params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
     rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)
@@ -286,7 +291,26 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     rod_model.static_solve(tol=1e-8, max_iter=50)
     total = ts[-1] + settings.settle_s
     steps = int(math.ceil(total / settings.dt_s))
-    iterations = 0
+    stats = {'iterations': 0, 'max_iterations': 0, 'halved': 0, 'smallest': settings.dt_s}
+
+    def advance(dt, halvings):
+        """One step of dt; a step whose Newton does not converge is retried as two half steps (the state is left
+        unchanged by the failed attempt), never accepted."""
+        try:
+            it = rod_model.step(dt)
+        except NewtonNotConverged as e:
+            if halvings >= settings.max_step_halvings:
+                raise DeploymentError(f'the rod simulation did not converge at t = {e.time:.4f} s, even with steps of '
+                                      f'{dt:.3g} s (dt_s / 2^{halvings}): {e}') from None
+            if halvings == 0:
+                stats['halved'] += 1
+            advance(0.5 * dt, halvings + 1)
+            advance(0.5 * dt, halvings + 1)
+            return
+        stats['iterations'] += it
+        stats['max_iterations'] = max(stats['max_iterations'], it)
+        stats['smallest'] = min(stats['smallest'], dt)
+
     path = []
     for k in range(steps):
         now = (k + 1) * settings.dt_s
@@ -295,7 +319,9 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
             del rod_model._prescribed[tuple(free_end.tolist())]
             rod_model.fixed[free_end] = False
         try:
-            iterations += rod_model.step(settings.dt_s)
+            advance(settings.dt_s, 0)
+        except DeploymentError:
+            raise
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
             raise DeploymentError(f'the rod simulation failed at t = {now:.3f} s: {e}') from None
         if not np.all(np.isfinite(rod_model.state.q)):
@@ -308,5 +334,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(final)
     deployed = final[:k_end, :2]
     return DeploymentResult(deployed_xy=deployed, nodes=final, gripper_path=np.array(path), start_xy=start,
-                            lead_in_rows=n_lead, steps=steps, newton_iterations=iterations,
-                            wall_time_s=time.perf_counter() - t_wall, friction=friction, settings=settings)
+                            lead_in_rows=n_lead, steps=steps, newton_iterations=stats['iterations'],
+                            wall_time_s=time.perf_counter() - t_wall, friction=friction, settings=settings,
+                            max_newton_iterations=stats['max_iterations'], halved_steps=stats['halved'],
+                            smallest_step_s=stats['smallest'])

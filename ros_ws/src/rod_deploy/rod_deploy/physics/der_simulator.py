@@ -137,6 +137,16 @@ class _Banded:
         return x
 
 
+class NewtonNotConverged(ArithmeticError):
+    """An implicit-Euler step whose Newton iteration did not reach the tolerance; the rod's state is unchanged (the
+    caller may retry with smaller steps, e.g. ``deployment.simulate``'s step halving)."""
+
+    def __init__(self, time, dt, iterations, residual, tolerance):
+        super().__init__(f'Newton did not converge in the step to t = {time:.6g} s (dt {dt:.3g} s): residual '
+                         f'{residual:.3g} after {iterations} iterations, tolerance {tolerance:.3g}')
+        self.time, self.dt, self.iterations, self.residual, self.tolerance = time, dt, iterations, residual, tolerance
+
+
 @dataclass
 class RodState:
     q: np.ndarray
@@ -276,7 +286,11 @@ class DiscreteElasticRod:
     def step(self, dt, tol=1e-10, max_iter=40):
         """One implicit-Euler step (Eq. 6a-b) by Newton with a backtracking line search on the residual norm.
 
-        Returns the number of Newton iterations.
+        Converged: the residual force norm below ``tol`` x the largest node weight x the number of DOFs, or a full
+        Newton step below 1e-14. Returns the number of Newton iterations; a step that does not converge within
+        ``max_iter`` iterations is not taken: ``NewtonNotConverged`` is raised and the state left as it was (it used
+        to be accepted silently: the snap of the hanging rod #1 in the old rest-length set-up ended steps at dt 0.01
+        and 0.02 s 3-10 node weights away from equilibrium).
         """
         s = self.state
         q0, u0 = s.q, s.u
@@ -301,6 +315,8 @@ class DiscreteElasticRod:
 
         res, H = residual(q, True)
         rn = np.linalg.norm(res)
+        tol_abs = tol * fscale * self.ndof
+        converged = False
         for it in range(1, max_iter + 1):
             dq = H.solve(-res)
             alpha = 1.0
@@ -315,9 +331,12 @@ class DiscreteElasticRod:
                 alpha *= 0.5
             q = qt
             res, rn = rt, rtn
-            if rn < tol * fscale * self.ndof or (alpha == 1.0 and np.max(np.abs(dq)) < 1e-14):
+            if rn < tol_abs or (alpha == 1.0 and np.max(np.abs(dq)) < 1e-14):
+                converged = True
                 break
             H = Ht if Ht is not None else residual(q, True)[1]
+        if not converged:
+            raise NewtonNotConverged(t1, dt, it, rn, tol_abs)
         u = (q - q0) / dt
         self._commit(q, u, t1)
         return it
