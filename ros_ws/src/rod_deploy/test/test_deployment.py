@@ -97,6 +97,12 @@ def test_cli_plan_simulate_evaluate(tmp_path, capsys):
     assert ev['e_mean_cm'] == pytest.approx(sim['e_mean_cm']) and set(ev) >= {'e_mean_cm', 'sigma_cm', 'coverage'}
 
 
+def test_cli_simulate_uses_the_library_time_step():
+    from rod_deploy.cli.main import build_parser
+    args = build_parser().parse_args(['simulate', '--traj', 't.csv', '--rod', 'r.yaml', '--out', 'd.csv'])
+    assert args.dt == SimulationSettings().dt_s == 0.02
+
+
 @pytest.mark.parametrize('args, words', [
     (['plan', '--pattern', '{missing}', '--rod', '{rod}', '--out', '{out}'], 'does not exist'),
     (['plan', '--pattern', '{long}', '--rod', '{rod}', '--out', '{out}'], 'longer than the rod allows'),
