@@ -39,7 +39,9 @@ class RodParameters:
     table: bool = False          # rigid table at z = 0
     friction: float = 0.0        # Coulomb coefficient mu with the table
     contact_stiffness: float = None   # penalty stiffness per node [N/m]; default from the node weight
-    friction_velocity: float = 1e-4   # regularisation of Coulomb friction [m/s]
+    #: regularisation of Coulomb friction [the caller's velocity unit]; the deployments set theirs from
+    #: ``deployment.simulate.DEFAULT_FRICTION_VELOCITY_M_S`` (1e-6 m/s)
+    friction_velocity: float = 1e-4
     natural_curvature: tuple = (0.0, 0.0)   # rest material curvature (kappa1, kappa2) [1/m], uniform along the rod
 
     @classmethod
