@@ -78,7 +78,8 @@ def main():
     t_all = time.perf_counter()
     lines = ['# The friction regularisation velocity: deployments and creep', '',
              f'`python benchmarks/friction_regularisation.py --cases {args.cases} --velocities {args.velocities}'
-             f'{" --dt %g" % args.dt if args.dt != 0.02 else ""}'
+             f'{" --dt %g" % args.dt if args.dt != 0.02 else ""}{" --creep-only" if args.creep_only else ""}'
+             f'{" --no-creep" if args.no_creep else ""}'
              f'{" --dt-check %g" % args.dt_check if args.dt_check else ""}`; {platform.machine()}, '
              f'{os.cpu_count()} cores (shared). Medium friction (0.5), default planner (nn, friction-limited start), '
              'edge 5 mm, gripper 0.01 m/s, damping 2/s.', '']
