@@ -109,10 +109,25 @@ class PlannedTrajectory:
     first_grasp_index: int        # row of the first pattern node (rows before it: hanging pose and lead-in)
     method: str
     timings_s: dict = field(default_factory=dict)
+    #: the processed pattern before the friction-limited start replaced its beginning (``pattern`` when unchanged)
+    pattern_as_given: ProcessedPattern | None = None
 
     @property
     def rotation(self):
         return Rotation.from_quat(self.quaternion)
+
+    def start_replacement(self, tol_m=1e-4):
+        """(length [m] of the pattern's start that the planned curve replaces, the largest distance [m] of the
+        planned curve from the pattern there); (0, 0) when the pattern is planned as given."""
+        given = self.pattern_as_given
+        if given is None or given is self.pattern:
+            return 0.0, 0.0
+        moved = np.flatnonzero(np.linalg.norm(self.pattern.xy - given.xy, axis=1) > tol_m)
+        if moved.size == 0:
+            return 0.0, 0.0
+        k = int(moved[-1]) + 1
+        d = np.linalg.norm(self.pattern.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
+        return float(given.s[min(k, len(given.s) - 1)]), float(d.max())
 
 
 def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
@@ -214,9 +229,12 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     settings = settings or PlannerSettings()
     settings.validate()
     t0 = time.perf_counter()
-    pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
+    pattern = given = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
     if settings.start == 'achievable' and settings.method != 'intuitive':
         from .achievable_start import achievable_start
+        # the pattern as drawn is checked first, so that an error names a point of it (the replaced start of a
+        # pattern that bends too sharply strays far from it: 15 cm on a digit 3 with a cusp)
+        node_inputs(given, rod, settings)
         mu = settings.friction or rod.friction or DEFAULT_FRICTION
         pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
                                    settings.max_abs_kappa_bar)
@@ -252,7 +270,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     t = trajectory_times(all_p, quat, settings.speed_m_s, settings.max_angular_rate_rad_s)
     return PlannedTrajectory(t=t, position=all_p, quaternion=quat, pattern=pattern, inputs=inputs,
                              grasp_position=qbar, grasp_rotvec=rotvec, first_grasp_index=n_lead,
-                             method=settings.method,
+                             method=settings.method, pattern_as_given=given,
                              timings_s={'pattern': t1 - t0, 'grasps': t2 - t1, 'total': time.perf_counter() - t0})
 
 
