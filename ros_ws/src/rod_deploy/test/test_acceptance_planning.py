@@ -1,12 +1,14 @@
 """What `rod-deploy plan` tells about a pattern it changes or refuses (found by the acceptance rehearsal,
 ``benchmarks/acceptance_rehearsal.py``): with the default friction-limited start, an error names a point of the
 pattern as drawn, and the replaced start is reported (JSON summary, a note on stderr, the plot)."""
+import json
 import re
 
 import numpy as np
 import pytest
 from scipy.interpolate import splev, splprep
 
+from rod_deploy.cli.main import main
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory
 
@@ -21,6 +23,11 @@ def digit3():
     return np.column_stack(splev(np.linspace(0, 1, 400), tck))
 
 
+def figure8():
+    t = np.linspace(0, 2 * np.pi, 600)
+    return np.column_stack([0.12 * np.cos(t), 0.12 * np.sin(t) * np.cos(t)])
+
+
 def test_a_too_sharp_pattern_is_refused_at_a_point_of_the_pattern_with_the_default_start():
     """The check ran on the replaced start only: the message named (0.0040, 0.0485) m, 3 cm off the drawn 3, with
     |kappa_bar| 4.3 instead of the cusp's 42."""
@@ -32,3 +39,25 @@ def test_a_too_sharp_pattern_is_refused_at_a_point_of_the_pattern_with_the_defau
     with pytest.raises(PlanningError) as tangent:
         plan_trajectory(pts, ROD, PlannerSettings(method='nn', start='tangent'))
     assert str(tangent.value) == str(err.value)
+
+
+def test_the_replaced_start_is_reported(tmp_path, capsys):
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
+    for name, pts in (('f8', figure8()), ('line', np.column_stack([np.linspace(0, 0.4, 50), np.zeros(50)]))):
+        np.savetxt(tmp_path / f'{name}.txt', pts)
+        assert main(['plan', '--pattern', str(tmp_path / f'{name}.txt'), '--rod', str(rod), '--out',
+                     str(tmp_path / f'{name}.csv'), '--plot', str(tmp_path / f'{name}.png')]) == 0
+        out = capsys.readouterr()
+        summary = json.loads(out.out.strip().splitlines()[-1])
+        if name == 'f8':
+            assert 0.15 < summary['start_replaced_m'] < 0.4 and summary['start_max_deviation_m'] > 0.02
+            assert 'friction-limited start (--start achievable) replaces the first' in out.err
+        else:
+            assert summary['start_replaced_m'] == 0 and summary['start_max_deviation_m'] == 0
+            assert 'replaces' not in out.err
+        assert (tmp_path / f'{name}.png').stat().st_size > 10000
+    plan = plan_trajectory(figure8(), ROD, PlannerSettings(method='nn'))
+    replaced, deviation = plan.start_replacement()
+    assert plan.pattern_as_given is not plan.pattern and deviation > 0.02
+    assert plan_trajectory(figure8(), ROD, PlannerSettings(method='nn', start='tangent')).start_replacement() == (0, 0)
