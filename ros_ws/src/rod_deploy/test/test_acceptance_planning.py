@@ -61,3 +61,19 @@ def test_the_replaced_start_is_reported(tmp_path, capsys):
     replaced, deviation = plan.start_replacement()
     assert plan.pattern_as_given is not plan.pattern and deviation > 0.02
     assert plan_trajectory(figure8(), ROD, PlannerSettings(method='nn', start='tangent')).start_replacement() == (0, 0)
+
+
+def test_the_bend_note_tells_the_pattern_from_its_replaced_start(tmp_path, capsys):
+    """A cursive e bends with |kappa_bar| <= 1.4; its replaced start bends up to 1.8: the note said 'the pattern
+    bends with |kappa_bar| up to 1.8'."""
+    t = np.linspace(-0.75 * np.pi, 1.25 * np.pi, 500)
+    e = np.column_stack([0.025 * t - 0.07 * np.sin(t), 0.07 * np.cos(t)])
+    np.savetxt(tmp_path / 'e.txt', e - e[0])
+    (tmp_path / 'rod.yaml').write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
+    assert main(['plan', '--pattern', str(tmp_path / 'e.txt'), '--rod', str(tmp_path / 'rod.yaml'), '--out',
+                 str(tmp_path / 'e.csv')]) == 0
+    out = capsys.readouterr()
+    summary = json.loads(out.out.strip().splitlines()[-1])
+    assert summary['pattern_max_abs_kappa_bar'] < 1.45 < summary['max_abs_kappa_bar']
+    assert 'the pattern bends' not in out.err
+    assert f'the pattern as drawn: up to {summary["pattern_max_abs_kappa_bar"]:.2g}' in out.err
