@@ -93,6 +93,10 @@ def run(args) -> int:
         plot_plan(args.plot, plan)
         summary['plot'] = str(args.plot)
     print(json.dumps(summary))
+    from rod_deploy.planning.pattern_input import sparse_points_note
+    note = sparse_points_note(points, (plan.pattern_as_given or plan.pattern).xy)
+    if note:
+        print(f'rod-deploy plan: note: {note}', file=sys.stderr)
     if summary.get('start_max_deviation_m', 0.0) > START_NOTE_M:
         print(f'rod-deploy plan: note: the friction-limited start (--start achievable) replaces the first '
               f'{summary["start_replaced_m"]:.3f} m of the pattern by a curve up to '

@@ -91,3 +91,34 @@ def check_pattern(xy, name='pattern', min_spacing_m=1e-6, line_numbers=None) -> 
         raise PatternError(f'{name}: {where(i + 1)} ({xy[i + 1, 0]:.6g}, {xy[i + 1, 1]:.6g}) repeats '
                            f'{where(i)}; remove repeated points')
     return xy
+
+
+def distance_to_polyline(points_xy, polyline_xy) -> np.ndarray:
+    """Distance [m] of each point to the polyline (straight segments between consecutive polyline points)."""
+    p = np.asarray(points_xy, float)[:, None, :]
+    a, b = np.asarray(polyline_xy, float)[:-1][None], np.asarray(polyline_xy, float)[1:][None]
+    ab = b - a
+    u = np.clip(np.sum((p - a) * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=2), 1e-30), 0.0, 1.0)
+    return np.linalg.norm(p - (a + u[..., None] * ab), axis=2).min(axis=1)
+
+
+#: points further apart than SPARSE_SPACING_M whose smooth curve strays more than SPARSE_NOTE_M from the straight
+#: segments between them are reported (dense points stray by the smoothing alone: 0.8-1.2 mm on the published ones)
+SPARSE_NOTE_M, SPARSE_SPACING_M = 0.002, 0.01
+
+
+def sparse_points_note(points_xy, curve_xy):
+    """A note (str) when the points are so sparse (some further apart than SPARSE_SPACING_M) that the smooth curve
+    through them (the planner's spline, nodes ``curve_xy``) strays more than SPARSE_NOTE_M from the straight segments
+    between them, else None: the planner
+    lays the curve, while Eq. 17 (``rod-deploy evaluate``) compares with the segments."""
+    points_xy = np.asarray(points_xy, float)
+    spacing = float(np.linalg.norm(np.diff(points_xy, axis=0), axis=1).max())
+    if spacing <= SPARSE_SPACING_M:
+        return None
+    gap = float(distance_to_polyline(curve_xy, points_xy).max())
+    if gap <= SPARSE_NOTE_M:
+        return None
+    return (f'the pattern\'s points are up to {100 * spacing:.1f} cm apart: the planner lays a smooth curve through '
+            f'them, up to {1000 * gap:.1f} mm from the straight segments between them, while Eq. 17 compares with '
+            f'those segments; give the points denser (every few mm) if the shape between them matters')
