@@ -77,3 +77,29 @@ def test_the_bend_note_tells_the_pattern_from_its_replaced_start(tmp_path, capsy
     assert summary['pattern_max_abs_kappa_bar'] < 1.45 < summary['max_abs_kappa_bar']
     assert 'the pattern bends' not in out.err
     assert f'the pattern as drawn: up to {summary["pattern_max_abs_kappa_bar"]:.2g}' in out.err
+
+
+def heart(n=500, phase=0.003):
+    """The classic heart, 20 cm wide: cusps at its bottom tip and its top dent (sampled beside the cusp points)."""
+    t = np.linspace(0, 2 * np.pi, n + 1)[:-1] + phase
+    return 0.2 / 32 * np.column_stack([16 * np.sin(t) ** 3,
+                                       13 * np.cos(t) - 5 * np.cos(2 * t) - 2 * np.cos(3 * t) - np.cos(4 * t)])
+
+
+@pytest.mark.parametrize('start', ['achievable', 'tangent'])
+def test_a_cusp_between_two_nodes_is_refused(start):
+    """The smoothing spline turns the heart's tip within a millimetre (|kappa_bar| 300 there) but its 5 mm nodes
+    saw at most 1.08: the heart was planned. Now the turning over every step of the dense spline is checked."""
+    with pytest.raises(PlanningError, match=r'bends too sharply for this rod at \(0.0000, -0.10\d\d\) m, between two '
+                                            r'nodes: it turns by \d+ degrees within 5 mm'):
+        plan_trajectory(heart(), ROD, PlannerSettings(method='nn', start=start))
+
+
+def test_smooth_patterns_pass_the_check_between_nodes():
+    """The turning over a step equals the node curvature on smooth patterns (a circle of 2 L_gb: kappa_bar 0.5, 0.58
+    at the spline's ends)."""
+    from rod_deploy.planning.trajectory import process_pattern
+    th = np.linspace(0, 1.5 * np.pi, 300)
+    pat = process_pattern(np.column_stack([0.068 * np.sin(th), 0.068 * (1 - np.cos(th))]))
+    assert pat.peak_bend[0] == pytest.approx(np.abs(pat.kappa).max(), rel=0.02)
+    plan_trajectory(np.column_stack([0.068 * np.sin(th), 0.068 * (1 - np.cos(th))]), ROD, PlannerSettings())

@@ -91,6 +91,9 @@ class ProcessedPattern:
     xy: np.ndarray         # (m, 2) points [m]
     tangent: np.ndarray    # (m, 2) unit tangents
     kappa: np.ndarray      # (m,) signed curvature [1/m], > 0 turning left
+    #: the sharpest bend between the nodes too: (|turning angle| / arc length over one step [1/m], where (x, y) [m]);
+    #: a bend shorter than a step (a cusp the spline rounds within a millimetre) can fall between two nodes
+    peak_bend: tuple | None = None
 
     @property
     def length(self):
@@ -167,7 +170,22 @@ def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_
                            f'on itself, which a rod cannot follow')
     tangent = d1 / speed[:, None]
     kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed ** 3
-    return ProcessedPattern(s=s, xy=p, tangent=tangent, kappa=kappa)
+    return ProcessedPattern(s=s, xy=p, tangent=tangent, kappa=kappa,
+                            peak_bend=_peak_bend(dense, np.stack(splev(u, tck, der=1), axis=1), s_dense, step_m))
+
+
+def _peak_bend(dense, d1, s_dense, window_m):
+    """(largest |turning angle| / arc length over windows of ``window_m`` along the dense spline [1/m], its place)."""
+    theta = np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+    j = np.searchsorted(s_dense, s_dense + window_m)
+    i = np.flatnonzero(j < len(s_dense))
+    if i.size == 0:
+        return None
+    j = j[i]
+    bend = np.abs(theta[j] - theta[i]) / (s_dense[j] - s_dense[i])
+    k = int(np.argmax(bend))
+    mid = int(np.argmax(np.abs(np.diff(theta[i[k]:j[k] + 1])))) + i[k]      # where the window turns most
+    return float(bend[k]), dense[mid].copy()
 
 
 def local_frames(tangent):
@@ -201,6 +219,13 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
             f'{pattern.xy[i, 1]:.4f}) m: radius {1 / abs(pattern.kappa[i]):.4f} m, |kappa_bar| = '
             f'{abs(kappa_bar[i]):.3g} > {settings.max_abs_kappa_bar:g} (smallest radius the rod can follow: '
             f'{Lgb / settings.max_abs_kappa_bar:.4f} m); smooth the pattern (--smoothing) or use a stiffer rod')
+    if pattern.peak_bend is not None and pattern.peak_bend[0] * Lgb > settings.max_abs_kappa_bar:
+        bend, (x, y) = pattern.peak_bend
+        raise PlanningError(
+            f'the pattern bends too sharply for this rod at ({x:.4f}, {y:.4f}) m, between two nodes: it turns by '
+            f'{np.degrees(bend * settings.step_m):.0f} degrees within {1000 * settings.step_m:g} mm (|kappa_bar| = '
+            f'{bend * Lgb:.3g} > {settings.max_abs_kappa_bar:g}, a corner or cusp; smallest radius the rod can follow: '
+            f'{Lgb / settings.max_abs_kappa_bar:.4f} m); round it off in the drawing or use a stiffer rod')
     return np.column_stack([ls_bar, np.full_like(ls_bar, rod.ks_bar), kappa_bar])
 
 
