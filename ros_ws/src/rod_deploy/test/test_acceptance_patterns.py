@@ -94,3 +94,9 @@ def test_sparse_points_are_noted_by_plan_and_evaluate(tmp_path, capsys):
     assert "evaluate: note: the pattern's points are up to 8.3 cm apart" in capsys.readouterr().err
     dense = np.column_stack([np.linspace(0, 0.45, 150), 0.12 * np.sin(np.pi * np.linspace(0, 0.45, 150) / 0.45)])
     assert sparse_points_note(dense, process_pattern(dense).xy) is None
+
+
+def test_a_pattern_in_millimetres_is_refused_with_a_hint(tmp_path, capsys):
+    rc, err, written = _plan(tmp_path, capsys, _lines(1000 * ARC))
+    assert rc == 2 and len(err) == 1 and not written
+    assert 'longer than the rod allows' in err[0] and "a pattern file's values must be in metres" in err[0]

@@ -209,7 +209,8 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
             f'the pattern ({pattern.length:.3f} m) is longer than the rod allows: at node {i} '
             f'({pattern.xy[i, 0]:.4f}, {pattern.xy[i, 1]:.4f}) m only {L - pattern.s[i]:.4f} m of the {L:g} m rod '
             f'would remain suspended (at least {settings.min_ls_bar:g} L_gb = {settings.min_ls_bar * Lgb:.4f} m); '
-            f'patterns up to {L - settings.min_ls_bar * Lgb:.3f} m fit this rod')
+            f'patterns up to {L - settings.min_ls_bar * Lgb:.3f} m fit this rod'
+            + (' (a pattern file\'s values must be in metres)' if pattern.length > 20.0 else ''))
     kappa_bar = -pattern.kappa * Lgb                                   # the released sign
     sharp = np.flatnonzero(np.abs(kappa_bar) > settings.max_abs_kappa_bar)
     if sharp.size:
