@@ -9,8 +9,11 @@ rod simulator, used as a library) and score the deployed shape with our Eq. 17.
 Set-up, the same as our simulator's (``rod_deploy.deployment.simulate``, CONTRACTS.md section 4) but in another
 model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet steps) of the rod's E, density and
 radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
-plane's response force) with Coulomb friction on the elements' centreline velocity (``CentrelineCoulombPlane``,
-PyElastica's static / kinetic switch at the slip tolerance; ``--friction-law pyelastica``: PyElastica's own
+plane's response force) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
+step (``NodalCoulombStickPlane``, the default since issue #10's third look: a sticking node is held still at any load
+up to mu N; ``--friction-law centreline``: ``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the
+slip tolerance on the elements, under which a laid rod loaded below mu N creeps at about the slip tolerance, 1e-4
+m/s; ``--friction-law pyelastica``: PyElastica's own
 ``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
 a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
@@ -79,7 +82,8 @@ class ElasticaSettings:
     settle_s: float = 1.0             # gripper still at the end
     contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
-    friction_law: str = 'centreline'  # CentrelineCoulombPlane, or 'pyelastica' (RodPlaneContactWithAnisotropicFriction)
+    friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane, creeps at the slip
+    #                                   tolerance), 'pyelastica' (RodPlaneContactWithAnisotropicFriction: rolls)
 
 
 def rotary_inertia_scaled(rod_e, scale):
