@@ -193,12 +193,14 @@ class NodalCoulombStickPlane(ea.NoContact):
     (``--friction-law stick``; see ``_nodal_coulomb_stick``).
 
     Why: PyElastica's static friction (in its own law and in ``CentrelineCoulombPlane``) cancels the element's
-    current tangential force up to mu N while the element moves slower than the slip tolerance, but not its velocity:
-    a loaded element in the sticking regime keeps drifting and, kicked by kinetic friction (mu g dt = 1.5e-3 m/s per
-    step, 15x the tolerance), chatters about the tolerance; a laid rod under a sustained load below mu N creeps at
-    about the slip tolerance (the published circle's free end: 1 mm per 10 s = 1e-4 m/s for 50 s after the gripper
-    left it, ``replay_probe.py``). Coulomb's law has no creep: the stick force here holds the node exactly, at any
-    load up to mu N."""
+    current tangential force up to mu N while the element moves slower than the slip tolerance, but not its velocity,
+    and its kinetic friction changes a slipping element's velocity by mu g dt = 1.5e-3 m/s per step (dt 3e-4 s), 15x
+    the tolerance, so an element braked by it overshoots the sticking band instead of landing in it. A laid rod under
+    a sustained load below mu N creeps: the published circle's free end moves 0.1 mm/s for 50 s after the gripper
+    has left it (``replay_probe.py``); the canonical arc creeps as much at slip tolerance 1e-5 as at 1e-4 m/s (3.2 mm
+    from 3 to 10 s) and 0.4x as much with half the step and half the element (``friction_canonical.md``; the two
+    were changed together): not the tolerance but, as far as measured, the step's friction impulse sets it.
+    Coulomb's law has no creep: the stick force here holds the node exactly, at any load up to mu N."""
 
     def __init__(self, k, nu, mu, dt):
         super().__init__()
