@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from pyelastica_replay import CentrelineCoulombPlane, NodalCoulombStickPlane, _Simulator, ea, rod_material, rotary_inertia_scaled  # noqa: E402
+from pyelastica_replay import (CentrelineCoulombPlane, NodalCoulombStickPlane, _Simulator, ea,  # noqa: E402
+                               rod_material, rotary_inertia_scaled)
 from results_dir import add_results_argument, results_path  # noqa: E402
 
 from rod_deploy.deployment.simulate import material_parameters  # noqa: E402

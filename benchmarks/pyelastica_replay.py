@@ -12,8 +12,8 @@ radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and d
 plane's response force) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
 step (``NodalCoulombStickPlane``, the default since issue #10's third look: a sticking node is held still at any load
 up to mu N; ``--friction-law centreline``: ``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the
-slip tolerance on the elements, under which a laid rod loaded below mu N creeps at about the slip tolerance, 1e-4
-m/s; ``--friction-law pyelastica``: PyElastica's own
+slip tolerance on the elements, under which a laid rod loaded below mu N creeps (the published circle's free end
+0.1 mm/s after the release); ``--friction-law pyelastica``: PyElastica's own
 ``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
 a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
@@ -82,8 +82,8 @@ class ElasticaSettings:
     settle_s: float = 1.0             # gripper still at the end
     contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
-    friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane, creeps at the slip
-    #                                   tolerance), 'pyelastica' (RodPlaneContactWithAnisotropicFriction: rolls)
+    friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane: creeps),
+    #                                   'pyelastica' (RodPlaneContactWithAnisotropicFriction: creeps and rolls)
 
 
 def rotary_inertia_scaled(rod_e, scale):
@@ -345,7 +345,8 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
         on_table = nodes[:, 2] <= h + s.contact_tolerance_m
         k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(nodes)
         out.append({'deployed_xy': nodes[:k_end, :2], 'nodes': nodes, 'gripper_path': grid_p,
-                    'replay_s': float(sched.t[-1]), 'snapshots': snap, 't_release_s': s.hang_settle_s + sched.t_release})
+                    'replay_s': float(sched.t[-1]), 'snapshots': snap,
+                    't_release_s': s.hang_settle_s + sched.t_release})
     return out, time.perf_counter() - wall
 
 
@@ -441,9 +442,12 @@ def main():
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
     ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
                     help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
-    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline', 'stick'), default=ElasticaSettings.friction_law,
-                    help="PyElastica's anisotropic friction (sideways on the rolling slip) or Coulomb friction on "
-                         'the centreline (no rolling; see CentrelineCoulombPlane)')
+    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline', 'stick'),
+                    default=ElasticaSettings.friction_law,
+                    help="stick: Coulomb friction on the nodes, stick / slip over the step (NodalCoulombStickPlane, "
+                         "no creep); centreline: on the elements with PyElastica's slip-tolerance switch "
+                         "(CentrelineCoulombPlane, creeps); pyelastica: PyElastica's anisotropic friction (creeps, "
+                         'and rolls sideways)')
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--tag', default='', help='suffix of the results files')
     ap.add_argument('--merge', nargs='+', metavar='JSON',
