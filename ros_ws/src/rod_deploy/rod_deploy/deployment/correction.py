@@ -356,49 +356,123 @@ class Replan:
     original_predicted_e_mean_cm: float | None
     simulations: int
     planner_L_gb_m: float | None          # the L_gb the planner was given (None: the original trajectory kept)
+    #: pre-compensation for fitted effects the planner does not model (None: not run): iterations, kept one
+    precompensation: dict | None = None
+
+
+@dataclass
+class PrecompensationSettings:
+    """Model-based iterative pre-compensation (:func:`precompensate`)."""
+    iterations: int = 4                   # simulations at most (one per planned template)
+    gain: float = 1.0                     # P_{k+1} = P_best + gain (P - D_best); halved after a worse one
+    min_gain: float = 0.2                 # stop once the gain falls below this
+
+
+def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, start, planner_settings,
+                  sim_settings, settings: PrecompensationSettings | None = None, progress=None):
+    """Plan for a modified pattern so that the FITTED simulator lays the rod on the pattern P.
+
+    ``start`` = (e_mean, Deployment, predicted deployment, replanned, planner L_gb): the best trajectory so far and
+    the fitted model's deployment of it, D_0; its template is P itself. Each iteration plans the template
+    T = T_best + gain (P - D_best) (P and D read at the same arc lengths from the free end, the template's first
+    point kept on P's: the free end is placed there), simulates it with the fitted rod (``rod``) and keeps it if its
+    Eq. 17 e_mean (directed) is lower; otherwise the gain is halved. The planner gets ``planner_rod`` (what it
+    models: L_gb, the friction of the start). Returns (best, simulations, record)."""
+    settings = settings or PrecompensationSettings()
+    from rod_deploy.planning.trajectory import PlanningError
+    P = np.asarray(pattern_xy, float)[:, :2]
+    t0 = time.perf_counter()
+    length = float(arc_length(P)[-1])
+    s = np.linspace(0.0, length, max(20, int(math.ceil(length / planner_settings.step_m)) + 1))
+    target = sample(P, s)
+    best, best_template = start, target
+    gain, count, history = settings.gain, 0, []
+    for k in range(settings.iterations):
+        if gain < settings.min_gain:
+            break
+        template = best_template + gain * (target - sample(best[2], s))
+        template[0] = target[0]
+        entry = {'iteration': k + 1, 'gain': gain}
+        try:
+            planned = plan_trajectory(template, planner_rod, planner_settings)
+        except PlanningError as e:
+            entry.update(accepted=False, note=f'not plannable: {e}')
+            history.append(entry)
+            gain *= 0.5
+            continue
+        dep = Deployment(planned.t, planned.position, planned.quaternion, tuple(template[0]))
+        d = ForwardModel(dep, sim_settings, progress).deployed(rod, f'pre-compensated plan {k + 1}, fitted rod')
+        count += 1
+        e = eq17_error(P, d, directed=True)['e_mean_cm']
+        entry.update(predicted_e_mean_cm=e, template_shift_max_mm=1e3 * float(np.max(np.linalg.norm(
+            template - target, axis=1))), accepted=bool(e < best[0]))
+        history.append(entry)
+        if e < best[0]:
+            best, best_template = (e, dep, d, True, planner_rod.gravito_bending_length_m), template
+        else:
+            gain *= 0.5
+    record = {'method': 'model-based iterative pre-compensation: plan for T_k, simulate with the fitted rod, '
+                        'T_{k+1} = T_best + gain (P - D_best), gain halved after a worse prediction, best kept',
+              'iterations': history, 'simulations': count, 'wall_time_s': time.perf_counter() - t0,
+              'start_predicted_e_mean_cm': start[0], 'predicted_e_mean_cm': best[0],
+              'template_kept': best_template is not target}
+    return best, count, record
+
+
+#: fitted parameters the planner takes directly; the others are pre-compensated with the fitted simulator
+PLANNER_MODELS = ('L_gb_m',)
 
 
 def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_settings: PlannerSettings,
-           sim_settings: SimulationSettings, simulate=True, progress=None) -> Replan:
+           sim_settings: SimulationSettings, simulate=True, progress=None,
+           precompensation: PrecompensationSettings | None = None) -> Replan:
     """The trajectory planned with the fitted rod; with ``simulate``, its deployment predicted by the fitted
     simulator (module doc). When that is predicted no better than the original trajectory and L_gb was fitted,
     the planner's L_gb is also tried on the other side of the declared one (declared^2 / fitted: the planner's own
-    bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included."""
+    bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included.
+    Fitted effects the planner does not model (natural curvature, friction) are then pre-compensated with the
+    fitted simulator in the loop (:func:`precompensate`; only with ``simulate``)."""
     pattern_xy = np.asarray(pattern_xy, float)
     rod = diagnosis.rod
-    if 'L_gb_m' not in diagnosis.fitted:             # nothing the planner models changed: its plan is the original
-        e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
-        return Replan(deployment.t, deployment.position, deployment.quaternion, False, diagnosis.fitted_xy, e_old,
-                      e_old, 0, None)
-    planned = plan_trajectory(pattern_xy, rod, planner_settings)
-    if not simulate:
-        return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0,
-                      rod.gravito_bending_length_m)
+    unmodelled = [k for k in diagnosis.fitted if k not in PLANNER_MODELS]
     e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
     best = (e_old, deployment, diagnosis.fitted_xy, False, None)
-    declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added if e['key'] == 'L_gb_m')
-    knobs = [rod.gravito_bending_length_m, declared ** 2 / rod.gravito_bending_length_m]
     count = 0
-    for k, planner_lgb in enumerate(knobs):
-        if k > 0 and best[3]:
-            break                                    # the fitted rod's plan already does better than the original
-        if k > 0:
-            planned = plan_trajectory(pattern_xy, rod_with(rod, {'L_gb_m': planner_lgb}), planner_settings)
-        model = ForwardModel(Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])),
-                             sim_settings, progress)
-        d = model.deployed(rod, f'corrected plan (planner L_gb {1e3 * planner_lgb:.1f} mm), fitted rod')
-        count += 1
-        e = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
-        if e < best[0]:
-            best = (e, Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])), d, True,
-                    planner_lgb)
+    if 'L_gb_m' in diagnosis.fitted:
+        planned = plan_trajectory(pattern_xy, rod, planner_settings)
+        if not simulate:
+            return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0,
+                          rod.gravito_bending_length_m)
+        declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added
+                        if e['key'] == 'L_gb_m')
+        knobs = [rod.gravito_bending_length_m, declared ** 2 / rod.gravito_bending_length_m]
+        for k, planner_lgb in enumerate(knobs):
+            if k > 0 and best[3]:
+                break                                # the fitted rod's plan already does better than the original
+            if k > 0:
+                planned = plan_trajectory(pattern_xy, rod_with(rod, {'L_gb_m': planner_lgb}), planner_settings)
+            model = ForwardModel(Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])),
+                                 sim_settings, progress)
+            d = model.deployed(rod, f'corrected plan (planner L_gb {1e3 * planner_lgb:.1f} mm), fitted rod')
+            count += 1
+            e = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
+            if e < best[0]:
+                best = (e, Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])), d,
+                        True, planner_lgb)
+    record = None
+    if unmodelled and simulate:
+        planner_rod = rod if best[4] is None else rod_with(rod, {'L_gb_m': best[4]})
+        best, n, record = precompensate(pattern_xy, rod, planner_rod, best, planner_settings, sim_settings,
+                                        precompensation, progress)
+        count += n
     e, dep, d, replanned, planner_lgb = best
-    return Replan(dep.t, dep.position, dep.quaternion, replanned, d, e, e_old, count, planner_lgb)
+    return Replan(dep.t, dep.position, dep.quaternion, replanned, d, e, e_old, count, planner_lgb, record)
 
 
 def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment | None = None,
             planner_settings: PlannerSettings | None = None, sim_settings: SimulationSettings | None = None,
-            settings: CorrectionSettings | None = None, replan_trajectory=True, simulate=True, progress=None):
+            settings: CorrectionSettings | None = None, replan_trajectory=True, simulate=True, progress=None,
+            precompensation: PrecompensationSettings | None = None):
     """diagnose + replan; returns (report dict, Diagnosis, Replan or None)."""
     t0 = time.perf_counter()
     settings = settings or CorrectionSettings()
@@ -430,20 +504,24 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
     }
     rp = None
     if replan_trajectory and diag.effects_added:
-        rp = replan(pattern_xy, diag, deployment, planner_settings, sim_settings, simulate, progress)
+        rp = replan(pattern_xy, diag, deployment, planner_settings, sim_settings, simulate, progress,
+                    precompensation)
+        unmodelled = [k for k in diag.fitted if k not in PLANNER_MODELS]
         report['replan'] = {'replanned': rp.replanned, 'original_predicted_e_mean_cm': rp.original_predicted_e_mean_cm,
                             'planner_L_gb_m': rp.planner_L_gb_m,
-                            'planner_models': ['L_gb_m'],
-                            'not_in_the_planner': [k for k in diag.fitted if k != 'L_gb_m']}
-        if not rp.replanned and 'L_gb_m' in diag.fitted:
-            report['warnings'].append('the trajectory replanned with the fitted rod is predicted to deploy no better than '
-                                      'the original one, which is kept')
-        elif not rp.replanned:
-            report['warnings'].append('nothing the planner models was fitted: the corrected trajectory is the '
-                                      'original one')
-        if [k for k in diag.fitted if k != 'L_gb_m']:
-            report['warnings'].append('the planner does not model ' + ', '.join(k for k in diag.fitted if k != 'L_gb_m')
-                                      + ': the corrected trajectory only uses the fitted L_gb')
+                            'planner_models': list(PLANNER_MODELS),
+                            'not_in_the_planner': unmodelled,
+                            'precompensation': rp.precompensation}
+        if not rp.replanned and simulate:
+            report['warnings'].append('no replanned or pre-compensated trajectory is predicted by the fitted model to '
+                                      'deploy better than the original one, which is kept')
+        if unmodelled and not simulate:
+            report['warnings'].append('the planner does not model ' + ', '.join(unmodelled) + ': they are '
+                                      'pre-compensated only with --simulate (the fitted simulator in the loop); the '
+                                      'corrected trajectory only uses the fitted L_gb' if 'L_gb_m' in diag.fitted
+                                      else 'the planner does not model ' + ', '.join(unmodelled) + ': they are '
+                                      'pre-compensated only with --simulate (the fitted simulator in the loop); the '
+                                      'corrected trajectory is the original one')
         if not rp.replanned:
             report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
                                      'coverage': before['coverage'],
@@ -453,7 +531,8 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
             after = eq17_error(pattern_xy, rp.predicted_xy, directed=True)
             report['error_after'] = {'e_mean_cm': after['e_mean_cm'], 'sigma_cm': after['sigma_cm'],
                                      'coverage': after['coverage'],
-                                     'source': 'the corrected trajectory simulated with the fitted rod'}
+                                     'source': 'the corrected trajectory simulated with the fitted rod',
+                                     'fitted_model_e_mean_cm_of_the_original': rp.original_predicted_e_mean_cm}
     else:
         report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
                                  'coverage': before['coverage'], 'source': 'unchanged: no effect added'}
