@@ -26,13 +26,25 @@ the residual sum of squares by at least ``min_rss_drop`` with the same strong BI
 Broyden-updated sensitivities is tried when the first falls short: the response is not linear over the range of
 real errors; at most ``max_confirmations`` confirming simulations in all).
 
-Replanning (:func:`replan`, only when an effect was added): the planner takes the fitted L_gb directly; a natural
-curvature or a lower friction are not in its model (they only enter the prediction). The replanned trajectory is
-simulated with the fitted rod and kept only if it is predicted to deploy better than the original one; if not, and
-L_gb was fitted, the planner's L_gb on the other side of the declared one is tried (the planner has its own bias in
-L_gb on short rods, which the fitted model shows). (Pre-compensating the pattern against the predicted
-deviation was tried and made a naturally curved rod's deployment worse: the planner's response to a pattern moved by
-a few mm is not that shift.)
+Replanning (:func:`replan`, only when an effect was added): the planner takes the fitted L_gb directly. The
+replanned trajectory is simulated with the fitted rod and kept only if it is predicted to deploy better than the
+original one; if not, and L_gb was fitted, the planner's L_gb on the other side of the declared one is tried (the
+planner has its own bias in L_gb on short rods, which the fitted model shows). A fitted natural curvature or lower
+friction is not in the planner's model; with ``simulate`` it is pre-compensated with the FITTED simulator in the loop
+(:func:`precompensate`): plan for a template T (T_0 = the pattern P, with the best trajectory so far), simulate it
+with the fitted rod (deployment D), T_{k+1} = T_best + gain (P - D_best) read at the same arc lengths (gain 1,
+halved after a worse prediction, the first point kept on P's), at most 4 simulations, the trajectory predicted best
+kept (the original included). Without ``simulate`` nothing is pre-compensated.
+
+Why not plan with an effective curvature kappa_pattern - kappa0: the laid rod's material frame is not fixed
+(``benchmarks/natural_curvature_frame.py``): a clean rod lies with d1 up (the frame the simulator's
+``NATURAL_CURVATURE_SIGN`` assumes) for every direction, turning sense (the network's mirroring) and start, but a
+rod with a natural curvature rolls about its axis as it is laid, by 18-26 degrees where the pattern is straight or
+turns with kappa0, and by about 80 degrees where it turns against it (its rest curvature then bends out of the
+table's plane). The in-plane effect is therefore neither kappa0 nor linear in it (on a 15 cm line a 0.3 m rod with
+3 /m turns by about 1 /m more), and planning a line as an arc of curvature -kappa0 (or +kappa0) laid it 10x worse
+than ignoring kappa0 (e_mean 1.31 / 1.04 cm against 0.11 cm), the opposite sign less badly. The simulator models the
+roll; the pre-compensation inherits it.
 """
 from __future__ import annotations
 
@@ -366,6 +378,7 @@ class PrecompensationSettings:
     iterations: int = 4                   # simulations at most (one per planned template)
     gain: float = 1.0                     # P_{k+1} = P_best + gain (P - D_best); halved after a worse one
     min_gain: float = 0.2                 # stop once the gain falls below this
+    smoothing_m: float = 0.02             # Gaussian low-pass of the correction P - D along the arc length (sigma)
 
 
 def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, start, planner_settings,
@@ -390,7 +403,11 @@ def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, 
     for k in range(settings.iterations):
         if gain < settings.min_gain:
             break
-        template = best_template + gain * (target - sample(best[2], s))
+        step = target - sample(best[2], s)
+        if settings.smoothing_m > 0:
+            from scipy.ndimage import gaussian_filter1d
+            step = gaussian_filter1d(step, settings.smoothing_m / (s[1] - s[0]), axis=0, mode='nearest')
+        template = best_template + gain * step
         template[0] = target[0]
         entry = {'iteration': k + 1, 'gain': gain}
         try:
@@ -401,7 +418,15 @@ def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, 
             gain *= 0.5
             continue
         dep = Deployment(planned.t, planned.position, planned.quaternion, tuple(template[0]))
-        d = ForwardModel(dep, sim_settings, progress).deployed(rod, f'pre-compensated plan {k + 1}, fitted rod')
+        model = ForwardModel(dep, sim_settings, progress)
+        try:
+            d = model.deployed(rod, f'pre-compensated plan {k + 1}, fitted rod')
+        except CorrectionError as e:             # failed, or laid nothing: a worse template
+            count += 1
+            entry.update(accepted=False, note=str(e))
+            history.append(entry)
+            gain *= 0.5
+            continue
         count += 1
         e = eq17_error(P, d, directed=True)['e_mean_cm']
         entry.update(predicted_e_mean_cm=e, template_shift_max_mm=1e3 * float(np.max(np.linalg.norm(
