@@ -217,3 +217,15 @@ def test_precompensation_converges_on_a_stand_in_and_survives_a_failed_simulatio
     assert n == 4 and len(record['iterations']) == 4
     assert record['iterations'][1]['accepted'] is False and 'diverged' in record['iterations'][1]['note']
     assert best[3] and best[0] < 0.3 * e0
+
+
+def test_a_negative_natural_curvature_on_a_left_turn_is_named_with_its_sign():
+    """The laid rod rolls ~80 degrees where the pattern turns against its natural curvature (README, the module doc):
+    the response is not odd in the curvature's sign, so each sign has its own sensitivity. With the positive step
+    alone this deployment was fitted as L_gb = 3.98 cm (measured)."""
+    true_rod = dataclasses.replace(ROD, natural_curvature_per_m=-3.0)
+    plan = plan_trajectory(PATTERN, ROD)
+    observed = simulate_deployment(plan.t, plan.position, plan.quaternion, true_rod, FAST).deployed_xy
+    d = diagnose(PATTERN, ROD, Deployment(plan.t, plan.position, plan.quaternion, tuple(PATTERN[0])), observed, FAST)
+    assert [e['key'] for e in d.effects_added] == ['natural_curvature_per_m'], d.candidates
+    assert d.fitted['natural_curvature_per_m'] == pytest.approx(-3.0, rel=0.1)

@@ -11,7 +11,11 @@ Candidate effects (:data:`EFFECTS`), one parameter each: a natural (rest) curvat
 (``natural_curvature_per_m``, 0 declared), a wrong gravito-bending length (``L_gb_m``: a stiffer or softer rod lags or
 leads along the pattern and turns its bends with offsets that scale with L_gb), and a lower Coulomb friction
 (``friction``: the laid part creeps towards the gripper). Each costs one simulation with the parameter perturbed
-(finite-difference sensitivities J of the residual). Effects are added by forward selection, each scored by the
+(finite-difference sensitivities J of the residual); the natural curvature two, one per sign, each a candidate
+fitted on its own side only (the laid rod rolls differently for the two signs, so the response is not odd: with the
+positive step alone a rod with -3 /m on a left turn was fitted as a wrong L_gb, and on the letter U as +2.75 /m); a
+sensitivity that cannot be simulated (the rod curls off the table) is retried at half the step, then dropped with a
+warning. Effects are added by forward selection, each scored by the
 Bayesian information criterion
 
     BIC_k = n ln((RSS_k + n sigma_floor^2) / n) + k ln n,   n = 2 n_points,
@@ -70,6 +74,7 @@ class Effect:
     key: str              # parameter name in the report
     name: str             # what it is, for people
     unit: str
+    side: float = 1.0     # natural curvature: the sign of the finite-difference step and of the fitted value
 
     def nominal(self, rod: RodDescription) -> float:
         if self.key == 'natural_curvature_per_m':
@@ -81,7 +86,7 @@ class Effect:
     def step(self, rod: RodDescription) -> float:
         """Finite-difference step of the sensitivity (a clearly visible but moderate change)."""
         if self.key == 'natural_curvature_per_m':
-            return 0.2 / rod.gravito_bending_length_m          # a bend of radius 5 L_gb
+            return self.side * 0.2 / rod.gravito_bending_length_m    # a bend of radius 5 L_gb, on its side
         if self.key == 'L_gb_m':
             return 0.15 * rod.gravito_bending_length_m
         return -0.5 * rod.friction                             # towards too little friction
@@ -91,7 +96,8 @@ class Effect:
             return float(np.clip(value, 0.3 * rod.gravito_bending_length_m, 3.0 * rod.gravito_bending_length_m))
         if self.key == 'friction':                   # the effect is too little friction
             return float(np.clip(value, 0.02 * rod.friction, rod.friction))
-        return float(value)
+        nominal = self.nominal(rod)                  # natural curvature: on the side its sensitivity was taken
+        return float(nominal + self.side * max(self.side * (value - nominal), 0.0))
 
 
 EFFECTS = {
@@ -237,15 +243,29 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                                                       f'within the noise floor ({1e3 * settings.noise_floor_m:g} mm)'})
         return out
     # -- sensitivities: one simulation per candidate effect
-    effects = [EFFECTS[e] for e in settings.effects]
+    # a natural curvature is not odd in its sign (the laid rod rolls one way or the other, see the module doc):
+    # one sensitivity per sign, each fitted on its own side only
+    effects = [v for e in settings.effects for v in (
+        (EFFECTS[e], dataclasses.replace(EFFECTS[e], side=-1.0)) if e == 'natural_curvature' else (EFFECTS[e],))]
     if any(e.step(rod) == 0 for e in effects):                # friction declared 0: it cannot be lower
         out.warnings.append('the declared friction is 0: too little friction is not a candidate')
         effects = [e for e in effects if e.step(rod) != 0]
     J = np.zeros((n, len(effects)))
+    usable = []
     for j, e in enumerate(effects):
-        h = e.step(rod)
-        d = model.deployed(rod_with(rod, {e.key: e.nominal(rod) + h}), f'{e.key} + {h:.3g}')
-        J[:, j] = (sample(d, s) - sample(nominal_xy, s)).ravel() / h
+        for h in (e.step(rod), 0.5 * e.step(rod)):      # a rod curled off the table: a smaller step
+            try:
+                d = model.deployed(rod_with(rod, {e.key: e.nominal(rod) + h}), f'{e.key} + {h:.3g}')
+            except CorrectionError as err:
+                failed = str(err)
+                continue
+            J[:, j] = (sample(d, s) - sample(nominal_xy, s)).ravel() / h
+            usable.append(j)
+            break
+        else:
+            out.warnings.append(f'{e.key} {"< 0" if e.side < 0 else ""} is not a candidate: its sensitivity could not '
+                                f'be simulated ({failed})')
+    effects, J = [effects[j] for j in usable], J[:, usable]
     # -- forward selection: the effect whose linearised fit lowers BIC most (with the held-out check) is confirmed
     #    by a simulation; once confirmed, the next effect must lower the confirmed BIC further, and so on
     n_fit = int(round((1.0 - settings.holdout_fraction) * settings.n_points))
@@ -260,7 +280,7 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
     while budget > 0 and rss_cur > n * floor2:          # within the noise floor: nothing left to explain
         ranked = []
         for j in range(len(effects)):
-            if j in selected or j in rejected:
+            if j in selected or j in rejected or effects[j].key in [effects[k].key for k in selected]:
                 continue
             cols = selected + [j]
             Js = J[:, cols]
@@ -269,7 +289,8 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
             st_fit, _ = _lstsq(Js[fit_rows], r_cur[fit_rows])
             rh = r_cur[~fit_rows]
             held_before, held_after = float(rh @ rh), float(np.sum((rh - Js[~fit_rows] @ st_fit) ** 2))
-            cand = {'effects': [effects[k].key for k in cols], 'rss_drop': 1.0 - rss / rss_cur,
+            cand = {'effects': [effects[k].key + (' (< 0)' if effects[k].side < 0 else '') for k in cols],
+                    'rss_drop': 1.0 - rss / rss_cur,
                     'bic_change': bic - bic_cur, 'holdout_rms_before_m': math.sqrt(held_before / rh.size),
                     'holdout_rms_after_m': math.sqrt(held_after / rh.size)}
             out.candidates.append(cand)
@@ -293,7 +314,11 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                     break
                 values = {effects[k].key: float(v) for k, v in zip(cols, x)}
                 trial_rod = rod_with(rod, values)
-                d = model.deployed(trial_rod, 'fitted ' + ', '.join(values) + (' (2nd step)' if attempt else ''))
+                try:
+                    d = model.deployed(trial_rod, 'fitted ' + ', '.join(values) + (' (2nd step)' if attempt else ''))
+                except CorrectionError:                 # failed or laid nothing: not confirmed
+                    budget -= 1
+                    break
                 budget -= 1
                 r = (obs - sample(d, s)).ravel()
                 tries.append((float(r @ r), x.copy(), r, trial_rod, d))
