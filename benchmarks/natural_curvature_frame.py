@@ -88,11 +88,25 @@ def main():
                             f'{d1z.min():+.3f} | {np.degrees(np.arccos(np.clip(d1z.mean(), -1, 1))):.0f} | {side:+.2f} | '
                             f'{np.degrees(extra):+.1f} | {e:.3f} |')
                 print(rows[-1], flush=True)
+    # an 'effective curvature' plan: the 15 cm line planned as an arc of curvature -k0 or +k0, laid by the k0 rod
+    eff = ['| k0 [1/m] | planned curvature [1/m] | e_mean against the line [cm] |', '|---|---|---|']
+    s = np.linspace(0.0, 0.15, 61)
+    for k0 in (3.0, -3.0):
+        rod = dataclasses.replace(ROD, natural_curvature_per_m=k0)
+        for kp in (0.0, -k0, k0, -k0 / 3):
+            arc = np.column_stack([np.sin(kp * s) / kp, (1 - np.cos(kp * s)) / kp]) if kp else LINE
+            plan = plan_trajectory(arc, ROD)
+            d = simulate_deployment(plan.t, plan.position, plan.quaternion, rod, FAST).deployed_xy
+            eff.append(f'| {k0:+g} | {kp:+.2g} | {eq17_error(LINE, d, directed=True)["e_mean_cm"]:.3f} |')
+            print(eff[-1], flush=True)
     out = Path(__file__).parent / 'results' / 'natural_curvature_frame.md'
     out.write_text('# The laid rod\'s material frame (benchmarks/natural_curvature_frame.py)\n\n'
                    '0.3 m rod, L_gb 3.4 cm, mu 0.5, nn plans; simulator 1 cm edges, dt 0.1 s, 0.03 m/s. d1_z: '
                    'vertical component of the material director d1 of the laid edges at the end (+1: up, the '
-                   'frame NATURAL_CURVATURE_SIGN assumes); roll: arccos of its mean.\n\n' + '\n'.join(rows) + '\n')
+                   'frame NATURAL_CURVATURE_SIGN assumes); roll: arccos of its mean; d1 . left: its component towards '
+                   'z x tangent.\n\n' + '\n'.join(rows) + '\n\n## Planning with an effective curvature\n\n'
+                   'The 15 cm line planned as an arc of the given curvature, laid by a rod with the natural '
+                   'curvature k0 (0: the line itself).\n\n' + '\n'.join(eff) + '\n')
     print(out)
 
 
