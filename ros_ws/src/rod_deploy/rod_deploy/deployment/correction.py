@@ -36,9 +36,11 @@ original one; if not, and L_gb was fitted, the planner's L_gb on the other side 
 planner has its own bias in L_gb on short rods, which the fitted model shows). A fitted natural curvature or lower
 friction is not in the planner's model; with ``simulate`` it is pre-compensated with the FITTED simulator in the loop
 (:func:`precompensate`): plan for a template T (T_0 = the pattern P, with the best trajectory so far), simulate it
-with the fitted rod (deployment D), T_{k+1} = T_best + gain (P - D_best) read at the same arc lengths (gain 1,
-halved after a worse prediction, the first point kept on P's), at most 4 simulations, the trajectory predicted best
-kept (the original included). Without ``simulate`` nothing is pre-compensated.
+with the fitted rod (deployment D), T_{k+1} = T_best + gain (P - D_best) read at the same arc lengths (P - D
+smoothed along the pattern, Gaussian sigma 2 cm; gain 1, halved after a worse prediction or a failed simulation; the
+first point kept on P's), at most 4 simulations, the trajectory predicted best kept (the original included); the
+iteration is erratic (benchmarks/results/natural_curvature_correction.md). Without ``simulate`` nothing is
+pre-compensated.
 
 Why not plan with an effective curvature kappa_pattern - kappa0: the laid rod's material frame is not fixed
 (``benchmarks/natural_curvature_frame.py``): a clean rod lies with d1 up (the frame the simulator's
@@ -413,7 +415,7 @@ def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, 
     ``start`` = (e_mean, Deployment, predicted deployment, replanned, planner L_gb): the best trajectory so far and
     the fitted model's deployment of it, D_0; its template is P itself. Each iteration plans the template
     T = T_best + gain (P - D_best) (P and D read at the same arc lengths from the free end, the template's first
-    point kept on P's: the free end is placed there), simulates it with the fitted rod (``rod``) and keeps it if its
+    point kept on P's: the free end is placed there; P - D smoothed by ``settings.smoothing_m``), simulates it with the fitted rod (``rod``) and keeps it if its
     Eq. 17 e_mean (directed) is lower; otherwise the gain is halved. The planner gets ``planner_rod`` (what it
     models: L_gb, the friction of the start). Returns (best, simulations, record)."""
     settings = settings or PrecompensationSettings()
