@@ -52,7 +52,8 @@ def turn(xy):
 
 
 def main():
-    rows = ['| start | pattern | k0 [1/m] | laid d1_z first 3 | last 3 | min | roll [deg] | d1 . left | extra turn [deg] | '
+    rows = ['| start | pattern | k0 [1/m] | laid d1_z first 3 | last 3 | min | roll [deg] | d1 . left | '
+            'extra turn [deg] | '
             'e_mean [cm] |', '|---|---|---|---|---|---|---|---|---|---|']
     for start in ('tangent', 'achievable'):
         for pname, P in PATTERNS.items():
@@ -85,7 +86,8 @@ def main():
                 L = 0.95 * min(sd[-1], sp[-1])
                 extra = (np.interp(L, sd[1:], ad) - ad[0]) - (np.interp(L, sp[1:], ap) - ap[0])
                 rows.append(f'| {start} | {pname} | {k0:+g} | {d1z[:3].mean():+.3f} | {d1z[-3:].mean():+.3f} | '
-                            f'{d1z.min():+.3f} | {np.degrees(np.arccos(np.clip(d1z.mean(), -1, 1))):.0f} | {side:+.2f} | '
+                            f'{d1z.min():+.3f} | {np.degrees(np.arccos(np.clip(d1z.mean(), -1, 1))):.0f} | '
+                            f'{side:+.2f} | '
                             f'{np.degrees(extra):+.1f} | {e:.3f} |')
                 print(rows[-1], flush=True)
     # an 'effective curvature' plan: the 15 cm line planned as an arc of curvature -k0 or +k0, laid by the k0 rod

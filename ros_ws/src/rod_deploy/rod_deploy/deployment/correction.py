@@ -415,9 +415,10 @@ def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, 
     ``start`` = (e_mean, Deployment, predicted deployment, replanned, planner L_gb): the best trajectory so far and
     the fitted model's deployment of it, D_0; its template is P itself. Each iteration plans the template
     T = T_best + gain (P - D_best) (P and D read at the same arc lengths from the free end, the template's first
-    point kept on P's: the free end is placed there; P - D smoothed by ``settings.smoothing_m``), simulates it with the fitted rod (``rod``) and keeps it if its
-    Eq. 17 e_mean (directed) is lower; otherwise the gain is halved. The planner gets ``planner_rod`` (what it
-    models: L_gb, the friction of the start). Returns (best, simulations, record)."""
+    point kept on P's: the free end is placed there; P - D smoothed by ``settings.smoothing_m``), simulates it with
+    the fitted rod (``rod``) and keeps it if its Eq. 17 e_mean (directed) is lower; otherwise (or when the
+    simulation fails or lays nothing) the gain is halved. The planner gets ``planner_rod`` (what it models: L_gb,
+    the friction of the start). Returns (best, simulations, record)."""
     settings = settings or PrecompensationSettings()
     from rod_deploy.planning.trajectory import PlanningError
     P = np.asarray(pattern_xy, float)[:, :2]
