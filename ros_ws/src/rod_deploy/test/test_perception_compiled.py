@@ -1,0 +1,60 @@
+"""The perception's compiled and cropped fast paths give the same numbers, bit for bit, as the plain numpy /
+OpenCV computations they replace."""
+import cv2
+import numpy as np
+
+from rod_deploy.perception.crossing_order import (_edge_contrasts, _edge_strengths, _occlusion_probes,
+                                                  _pairwise_sum, _perturbed_directions)
+from rod_deploy.perception.pipeline import distance_map
+
+
+def test_pairwise_sum_is_numpys_sum():
+    rng = np.random.default_rng(0)
+    for n in list(range(0, 300)) + [511, 1000, 4099]:
+        x = rng.random((2, n)) * 10.0 ** rng.uniform(-3, 3)
+        ref = x.sum(axis=1)
+        for r in range(2):
+            assert _pairwise_sum(np.ascontiguousarray(x[r]), 0, n) == ref[r]
+
+
+def _reference_contrasts(grey, centre, directions, wa, wb):
+    """The occlusion-edge contrasts from the numpy probes (:func:`_occlusion_probes`, :func:`_edge_strengths`)."""
+    probes = []
+    for ta, tb in directions:
+        probes += [_occlusion_probes(grey.shape, centre, ta, tb, wa, wb),
+                   _occlusion_probes(grey.shape, centre, tb, ta, wb, wa)]
+    e = _edge_strengths(grey.astype(np.float32), probes)
+    return [(ea - eb) / (ea + eb) if np.isfinite(ea) and np.isfinite(eb) and ea + eb > 0 else float('nan')
+            for ea, eb in zip(e[0::2], e[1::2])]
+
+
+def test_compiled_edge_contrasts_equal_the_numpy_probes():
+    rng = np.random.default_rng(1)
+    finite = 0
+    for trial in range(400):
+        h, w = rng.integers(80, 240, 2)
+        grey = rng.integers(0, 256, (h, w)).astype(np.uint8)
+        centre = rng.uniform([0, 0], [h, w]) if trial % 4 == 0 else rng.uniform([35, 35], [h - 35, w - 35])
+        a = rng.uniform(0, 2 * np.pi)
+        b = a + rng.uniform(0.05, np.pi)
+        dirs = _perturbed_directions(np.array([np.cos(a), np.sin(a)]), np.array([np.cos(b), np.sin(b)]),
+                                     np.radians(8.0))
+        wa, wb = rng.uniform(1, 22, 2)
+        new = _edge_contrasts(grey, centre, dirs, wa, wb)
+        ref = _reference_contrasts(grey, centre, dirs, wa, wb)
+        assert np.array_equal(np.array(new), np.array(ref), equal_nan=True)
+        finite += int(np.isfinite(new).sum())
+    assert finite > 1000          # most probe sets lie inside the image
+
+
+def test_distance_map_equals_opencv_on_the_whole_image():
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        h, w = rng.integers(1, 300, 2)
+        m = np.zeros((h, w), bool)
+        for _ in range(rng.integers(0, 8)):
+            r, c = rng.integers(0, h), rng.integers(0, w)
+            cv2.circle(m.view(np.uint8), (int(c), int(r)), int(rng.integers(1, 60)), 1, -1)
+        if trial % 3 == 0:
+            m &= rng.random((h, w)) > 0.05
+        assert np.array_equal(distance_map(m), cv2.distanceTransform(m.view(np.uint8), cv2.DIST_L2, 3))
