@@ -117,7 +117,8 @@ def foreground_evidence(bgr: np.ndarray, background, method: str) -> np.ndarray:
     # one colour: per channel, a 256-entry table of the difference from it
     grey = np.arange(256)[:, None] - np.array([round(v) for v in background])[None, :]
     table = np.abs(grey) if polarity == 0 else np.maximum(-grey if polarity == 1 else grey, 0)
-    _channel_max_table(bgr, np.ascontiguousarray(table, dtype=np.uint8), s)
+    table = table.astype(np.uint8)
+    _channel_max_table(bgr.reshape(-1), *(np.ascontiguousarray(table[:, k]) for k in range(3)), s.reshape(-1))
     return s
 
 
@@ -141,13 +142,15 @@ def _channel_max_difference(bgr, background, polarity, out):
 
 
 @njit(cache=True, nogil=True)
-def _channel_max_table(bgr, table, out):
-    """out = max over the channels k of table[I_k, k], in one pass."""
-    n = out.size
-    pixels = bgr.reshape(n, 3)
-    evidence = out.reshape(n)
-    for i in range(n):
-        evidence[i] = max(table[pixels[i, 0], 0], table[pixels[i, 1], 1], table[pixels[i, 2], 2])
+def _channel_max_table(pixels, table_b, table_g, table_r, out):
+    """out[i] = max(table_b[B_i], table_g[G_i], table_r[R_i]) over the flat BGR ``pixels``, in one pass
+    (one 256-entry table per channel)."""
+    for i in range(out.size):
+        b = table_b[pixels[3 * i]]
+        g = table_g[pixels[3 * i + 1]]
+        r = table_r[pixels[3 * i + 2]]
+        m = b if b > g else g
+        out[i] = m if m > r else r
 
 
 def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()) -> Segmentation:
