@@ -58,3 +58,31 @@ def test_distance_map_equals_opencv_on_the_whole_image():
         if trial % 3 == 0:
             m &= rng.random((h, w)) > 0.05
         assert np.array_equal(distance_map(m), cv2.distanceTransform(m.view(np.uint8), cv2.DIST_L2, 3))
+
+
+def test_gaussian_filter_is_scipys():
+    from scipy.ndimage import gaussian_filter1d
+
+    from rod_deploy.perception.centreline import gaussian_filter
+    rng = np.random.default_rng(0)
+    for sigma in (0.7, 1.0, 1.5, 2.0, 3.3):
+        for n in range(1, 120):
+            x = rng.normal(size=(n, 2)) * 100 + 300
+            for wrap in (True, False):
+                mode = 'wrap' if wrap else 'nearest'
+                assert np.array_equal(gaussian_filter(x, sigma, wrap), gaussian_filter1d(x, sigma, axis=0, mode=mode))
+                assert np.array_equal(gaussian_filter(x[:, 0].copy(), sigma, wrap),
+                                      gaussian_filter1d(x[:, 0], sigma, mode=mode))
+
+
+def test_medians_are_numpys():
+    from rod_deploy.perception.centreline import _median
+    from rod_deploy.perception.pipeline import _median_evidence
+    rng = np.random.default_rng(2)
+    for n in range(1, 60):
+        x = rng.normal(size=n)
+        assert _median(x) == np.median(x)
+        ev = rng.integers(0, 256, (20, 20)).astype(np.uint8)
+        pts = rng.uniform(0, 19, (n, 2))
+        assert _median_evidence(ev, pts) == float(np.median(ev[np.round(pts[:, 0]).astype(int),
+                                                                np.round(pts[:, 1]).astype(int)]))
