@@ -86,3 +86,26 @@ def test_medians_are_numpys():
         pts = rng.uniform(0, 19, (n, 2))
         assert _median_evidence(ev, pts) == float(np.median(ev[np.round(pts[:, 0]).astype(int),
                                                                 np.round(pts[:, 1]).astype(int)]))
+
+
+def test_colour_sample_and_lookup_are_the_numpy_gathers():
+    from rod_deploy.perception.crossing_order import _sample
+    from rod_deploy.perception.pipeline import _lookup
+    rng = np.random.default_rng(4)
+    for trial in range(100):
+        h, w = rng.integers(3, 60, 2)
+        img = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)
+        pts = rng.uniform(-3, [h + 2, w + 2], (int(rng.integers(0, 50)), 2))
+        pts[::3] = np.round(pts[::3]) + 0.5                       # ties: rounded half to even
+        r = np.minimum(np.maximum(np.round(pts[:, 0]).astype(np.intp), 1), h - 2)
+        c = np.minimum(np.maximum(np.round(pts[:, 1]).astype(np.intp), 1), w - 2)
+        flat = img.reshape(-1, 3)
+        window = np.array([-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1])
+        ref = flat[window[:, None] + (r * w + c)[None, :]].astype(np.float32).sum(axis=0) / 9.0
+        new = _sample(img, pts)
+        assert new.dtype == ref.dtype and np.array_equal(new, ref)
+        for image in (img[:, :, 0].copy(), img[:, :, 1] > 128, rng.random((h, w)).astype(np.float32)):
+            p = np.round(pts).astype(int)
+            ref = image[np.clip(p[:, 0], 0, h - 1), np.clip(p[:, 1], 0, w - 1)]
+            new = _lookup(image, pts)
+            assert new.dtype == ref.dtype and np.array_equal(new, ref)

@@ -49,15 +49,31 @@ def _lab_ab(bgr_pixels: np.ndarray) -> np.ndarray:
 def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Mean colour over the 3x3 pixels around each (row, col) point (cheaper than blurring the image)."""
     h, w = image.shape[:2]
-    points = np.asarray(points).reshape(-1, 2)
-    r = np.minimum(np.maximum(np.round(points[:, 0]).astype(np.intp), 1), max(h - 2, 1))
-    c = np.minimum(np.maximum(np.round(points[:, 1]).astype(np.intp), 1), max(w - 2, 1))
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if h < 3 or w < 3:
+        r = np.minimum(np.maximum(np.round(points[:, 0]).astype(np.intp), 1), max(h - 2, 1))
+        c = np.minimum(np.maximum(np.round(points[:, 1]).astype(np.intp), 1), max(w - 2, 1))
         return image[np.minimum(r, h - 1), np.minimum(c, w - 1)].astype(np.float32)
-    flat = image.reshape(-1, image.shape[2])
-    window = np.array([-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1], dtype=np.intp)
-    # one gather of the nine neighbours, (9, n, channels); sums of integers (<= 9 * 255) are exact in float32
-    return flat[window[:, None] + (r * w + c)[None, :]].astype(np.float32).sum(axis=0) / 9.0
+    out = np.empty((len(points), image.shape[2]), np.float32)
+    _mean3x3(np.ascontiguousarray(image), points, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _mean3x3(image, points, out):
+    """out[i] = the mean of the 3x3 pixels (per channel) around the pixel nearest to points[i] (rounded half
+    to even, as np.round; clipped one pixel inside the border): the nine integers summed exactly, then one
+    float32 division by 9, as numpy's float32 sum of them does."""
+    h, w, k = image.shape
+    for i in range(points.shape[0]):
+        r = min(max(int(np.rint(points[i, 0])), 1), h - 2)
+        c = min(max(int(np.rint(points[i, 1])), 1), w - 2)
+        for ch in range(k):
+            total = 0
+            for dr in range(-1, 2):
+                for dc in range(-1, 2):
+                    total += image[r + dr, c + dc, ch]
+            out[i, ch] = np.float32(total) / np.float32(9.0)
 
 
 def median0(values: np.ndarray) -> np.ndarray:

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from numba import njit
 
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
@@ -257,10 +258,24 @@ def _centreline_width(graph, dist, f, w, mismatch):
 
 
 def _lookup(image, points):
-    """``image`` at the pixels nearest to (row, col) ``points`` (clipped to the image)."""
-    p = np.round(points).astype(int)
-    return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
-                 np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    """``image`` at the pixels nearest to (row, col) ``points`` (rounded half to even, as np.round; clipped
+    to the image), compiled for float point arrays."""
+    points = np.asarray(points)
+    if points.dtype != np.float64 or points.ndim != 2 or image.ndim != 2:
+        p = np.round(points).astype(int)
+        return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
+                     np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    out = np.empty(len(points), image.dtype)
+    _lookup_kernel(image.view(np.uint8) if image.dtype == bool else image, points,
+                   out.view(np.uint8) if image.dtype == bool else out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _lookup_kernel(image, points, out):
+    h, w = image.shape
+    for i in range(points.shape[0]):
+        out[i] = image[min(max(int(np.rint(points[i, 0])), 0), h - 1), min(max(int(np.rint(points[i, 1])), 0), w - 1)]
 
 
 def _median_evidence(evidence, points):
