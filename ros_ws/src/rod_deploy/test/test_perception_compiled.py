@@ -109,3 +109,25 @@ def test_colour_sample_and_lookup_are_the_numpy_gathers():
             ref = image[np.clip(p[:, 0], 0, h - 1), np.clip(p[:, 1], 0, w - 1)]
             new = _lookup(image, pts)
             assert new.dtype == ref.dtype and np.array_equal(new, ref)
+
+
+def test_arc_length_and_resample_are_the_numpy_formulas():
+    from rod_deploy.perception.centreline import arc_length, resample
+    rng = np.random.default_rng(7)
+    for trial in range(2000):
+        n = int(rng.integers(1, 60))
+        p = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 3
+        if trial % 3 == 1:
+            p = rng.integers(0, 30, (n, 2)).astype(float)         # repeated points and exact sample hits
+        step = float(rng.choice([1.0, 0.5, rng.uniform(0.3, 3)]))
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))]) if n > 1 else np.zeros(n)
+        assert np.array_equal(arc_length(p), s)
+        keep = np.concatenate([[True], np.diff(s) > 1e-9])
+        q, s = p[keep], s[keep]
+        if len(q) < 2 or s[-1] <= 0:
+            ref = q[:1]
+        else:
+            t = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / step)) + 1))
+            ref = np.stack([np.interp(t, s, q[:, 0]), np.interp(t, s, q[:, 1])], axis=1)
+        out = resample(p, step)
+        assert out.shape == ref.shape and np.array_equal(out, ref)

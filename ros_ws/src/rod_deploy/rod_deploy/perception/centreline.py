@@ -33,9 +33,24 @@ class RefinedPath:
 
 
 def arc_length(points: np.ndarray) -> np.ndarray:
+    """Cumulative arc length [px] along (n, 2) points (0 at the first)."""
     if len(points) < 2:
         return np.zeros(len(points))
+    points = np.asarray(points)
+    if points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
+        return _arc_length(points)
     return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
+
+
+@njit(cache=True, nogil=True)
+def _arc_length(points):
+    """np.concatenate([[0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))]), the same sums in the same order."""
+    s = np.empty(points.shape[0])
+    s[0] = 0.0
+    for i in range(1, points.shape[0]):
+        step = np.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
+        s[i] = step if i == 1 else s[i - 1] + step
+    return s
 
 
 def resample(points: np.ndarray, step_px: float) -> np.ndarray:
@@ -47,8 +62,29 @@ def resample(points: np.ndarray, step_px: float) -> np.ndarray:
     if len(points) < 2 or s[-1] <= 0:
         return points[:1].copy()
     n = max(2, int(np.ceil(s[-1] / step_px)) + 1)
-    t = np.linspace(0.0, s[-1], n)
-    return np.stack([np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])], axis=1)
+    return _resample_at(np.ascontiguousarray(points), s, n)
+
+
+@njit(cache=True, nogil=True)
+def _resample_at(points, s, n):
+    """The (n, 2) points at arc lengths np.linspace(0, s[-1], n) along ``points`` (arc lengths ``s``, strictly
+    increasing): numpy's linspace and np.interp arithmetic (t_k = k step + 0, the last exactly s[-1]; between
+    s_j <= t < s_j+1: slope (t - s_j) + y_j with slope = (y_j+1 - y_j) / (s_j+1 - s_j); at a sample: y_j)."""
+    m = s.size
+    out = np.empty((n, 2))
+    step = (s[m - 1] - 0.0) / (n - 1)
+    j = 0
+    for k in range(n):
+        t = k * step + 0.0 if k < n - 1 else s[m - 1]
+        while j < m - 1 and s[j + 1] <= t:
+            j += 1
+        for c in range(2):
+            if j == m - 1 or s[j] == t:
+                out[k, c] = points[j, c]
+            else:
+                slope = (points[j + 1, c] - points[j, c]) / (s[j + 1] - s[j])
+                out[k, c] = slope * (t - s[j]) + points[j, c]
+    return out
 
 
 def smooth(points: np.ndarray, sigma_pts: float, closed: bool) -> np.ndarray:
