@@ -131,3 +131,18 @@ def test_arc_length_and_resample_are_the_numpy_formulas():
             ref = np.stack([np.interp(t, s, q[:, 0]), np.interp(t, s, q[:, 1])], axis=1)
         out = resample(p, step)
         assert out.shape == ref.shape and np.array_equal(out, ref)
+
+
+def test_profile_maps_are_the_numpy_broadcasts():
+    from rod_deploy.perception.centreline import _profile_maps
+    rng = np.random.default_rng(8)
+    for trial in range(50):
+        n = int(rng.integers(1, 300))
+        pts = rng.uniform(0, 900, (n, 2))
+        a = rng.uniform(0, 2 * np.pi, n)
+        normals = np.stack([np.cos(a), np.sin(a)], axis=1)
+        half = rng.uniform(2, 20)
+        offsets = np.arange(-half, half + 1e-9, 0.5)
+        cols, rows = _profile_maps(pts, normals, offsets)
+        assert np.array_equal(rows, (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32))
+        assert np.array_equal(cols, (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32))

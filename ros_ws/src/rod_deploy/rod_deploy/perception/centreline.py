@@ -165,11 +165,23 @@ def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray,
                   step_px: float = 0.5):
     """Evidence sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals."""
     offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
-    rows = points[:, 0:1] + offsets[None, :] * normals[:, 0:1]
-    cols = points[:, 1:2] + offsets[None, :] * normals[:, 1:2]
-    prof = cv2.remap(evidence, cols.astype(np.float32), rows.astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)
+    cols, rows = _profile_maps(np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64), offsets)
+    prof = cv2.remap(evidence, cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return prof, offsets
+
+
+@njit(cache=True, nogil=True)
+def _profile_maps(points, normals, offsets):
+    """float32 (col, row) maps of the samples p + o n (computed in float64, then rounded to float32, as numpy
+    does with points[:, k:k+1] + offsets[None, :] * normals[:, k:k+1])."""
+    n, k = points.shape[0], offsets.size
+    cols = np.empty((n, k), np.float32)
+    rows = np.empty((n, k), np.float32)
+    for i in range(n):
+        for j in range(k):
+            rows[i, j] = np.float32(points[i, 0] + offsets[j] * normals[i, 0])
+            cols[i, j] = np.float32(points[i, 1] + offsets[j] * normals[i, 1])
+    return cols, rows
 
 
 def _parabolic_peak(g: np.ndarray, j: np.ndarray) -> np.ndarray:
