@@ -146,3 +146,20 @@ def test_profile_maps_are_the_numpy_broadcasts():
         cols, rows = _profile_maps(pts, normals, offsets)
         assert np.array_equal(rows, (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32))
         assert np.array_equal(cols, (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32))
+
+
+def test_hermite_connector_is_the_numpy_formula():
+    from rod_deploy.perception.traversal import hermite_connector
+    rng = np.random.default_rng(9)
+    for trial in range(2000):
+        p0, p1 = rng.uniform(0, 900, 2), rng.uniform(0, 900, 2)
+        if trial % 5 == 0:
+            p1 = p0 + rng.normal(size=2) * 3
+        a, b = rng.uniform(0, 6.3, 2)
+        t0, t1 = np.array([np.cos(a), np.sin(a)]), np.array([np.cos(b), np.sin(b)])
+        d = float(np.linalg.norm(p1 - p0))
+        s = np.linspace(0.0, 1.0, max(2, int(np.ceil(d)) + 1))[:, None]
+        ref = ((2 * s ** 3 - 3 * s ** 2 + 1) * p0 + (s ** 3 - 2 * s ** 2 + s) * (d * t0)
+               + (-2 * s ** 3 + 3 * s ** 2) * p1 + (s ** 3 - s ** 2) * (d * t1))
+        out = hermite_connector(p0, t0, p1, t1)
+        assert out.shape == ref.shape and np.array_equal(out, ref)
