@@ -163,3 +163,12 @@ def test_hermite_connector_is_the_numpy_formula():
                + (-2 * s ** 3 + 3 * s ** 2) * p1 + (s ** 3 - s ** 2) * (d * t1))
         out = hermite_connector(p0, t0, p1, t1)
         assert out.shape == ref.shape and np.array_equal(out, ref)
+
+
+def test_path_length_is_numpys_sum():
+    from rod_deploy.perception.centreline import path_length
+    rng = np.random.default_rng(10)
+    for n in range(0, 400):
+        p = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 3
+        ref = float(np.sum(np.hypot(*np.diff(p, axis=0).T))) if n > 1 else 0.0
+        assert path_length(p) == ref

@@ -22,6 +22,8 @@ import numpy as np
 from numba import njit
 from scipy.ndimage import gaussian_filter1d
 
+from rod_deploy.perception.crossing_order import _pairwise_sum
+
 
 @dataclass
 class RefinedPath:
@@ -51,6 +53,25 @@ def _arc_length(points):
         step = np.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
         s[i] = step if i == 1 else s[i - 1] + step
     return s
+
+
+def path_length(points: np.ndarray) -> float:
+    """Length [px] of the polyline through (n, 2) ``points``: ``np.sum(np.hypot(*np.diff(points, axis=0).T))``,
+    the same pairwise sum, compiled."""
+    points = np.asarray(points)
+    if len(points) < 2:
+        return 0.0
+    if points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
+        return float(_path_length(points))
+    return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
+
+
+@njit(cache=True, nogil=True)
+def _path_length(points):
+    steps = np.empty(points.shape[0] - 1)
+    for i in range(steps.size):
+        steps[i] = np.hypot(points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1])
+    return _pairwise_sum(steps, 0, steps.size)
 
 
 def resample(points: np.ndarray, step_px: float) -> np.ndarray:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from rod_deploy.perception.centreline import path_length
 from rod_deploy.perception.thinning import zhang_suen_thinning
 
 END = 'end'
@@ -49,7 +50,7 @@ class Edge:
     def length_px(self) -> float:
         """Arc length [px] (cached: an edge's points never change)."""
         if self._length is None:
-            self._length = 0.0 if len(self.points) < 2 else float(np.sum(np.hypot(*np.diff(self.points, axis=0).T)))
+            self._length = path_length(self.points)
         return self._length
 
     _length: float | None = field(default=None, repr=False, compare=False)

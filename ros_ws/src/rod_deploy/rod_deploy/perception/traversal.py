@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
+from rod_deploy.perception.centreline import path_length
 from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
@@ -29,9 +30,7 @@ class TracedObject:
     passes: list = field(default_factory=list)
 
     def length_px(self) -> float:
-        if len(self.points) < 2:
-            return 0.0
-        return float(np.sum(np.hypot(*np.diff(self.points, axis=0).T)))
+        return path_length(self.points)
 
 
 def hermite_connector(p0, t0, p1, t1, step_px: float = 1.0) -> np.ndarray:
