@@ -172,3 +172,15 @@ def test_path_length_is_numpys_sum():
         p = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 3
         ref = float(np.sum(np.hypot(*np.diff(p, axis=0).T))) if n > 1 else 0.0
         assert path_length(p) == ref
+
+
+def test_level_counts_are_calchist():
+    from rod_deploy.perception.segmentation import _count_levels
+    rng = np.random.default_rng(11)
+    for trial in range(30):
+        s = rng.integers(0, 256, rng.integers(1, 300, 2)).astype(np.uint8)
+        for view in (s, s[::2, ::2]):
+            hist = np.zeros(256)
+            _count_levels(view, hist)
+            ref = cv2.calcHist([np.ascontiguousarray(view)], [0], None, [256], [0, 256]).ravel().astype(np.float64)
+            assert np.array_equal(hist, ref)

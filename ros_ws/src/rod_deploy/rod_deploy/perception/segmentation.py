@@ -160,7 +160,7 @@ def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()
     s = foreground_evidence(bgr, background, config.method)
     # histogram statistics from every other row and column (4x fewer pixels), unless that leaves few
     # object pixels (thin strokes)
-    sub = np.ascontiguousarray(s[::2, ::2]) if min(s.shape) >= 64 else s
+    sub = s[::2, ::2] if min(s.shape) >= 64 else s
     t_otsu, n_fg, mean_fg, mean_bg = _histogram_split(sub, config.threshold)
     if sub is not s and n_fg < 500:
         sub = s
@@ -202,7 +202,8 @@ def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()
 def _histogram_split(s: np.ndarray, threshold):
     """(threshold T, pixels above T, their mean, mean of the rest) of an evidence image; T by Otsu
     unless given."""
-    hist = cv2.calcHist([s], [0], None, [256], [0, 256]).ravel().astype(np.float64)
+    hist = np.zeros(256, np.float64)
+    _count_levels(s, hist)
     t = _otsu(hist) if threshold is None else float(threshold)
     levels = np.arange(256)
     above = levels > t
@@ -210,6 +211,14 @@ def _histogram_split(s: np.ndarray, threshold):
     mean_fg = float((hist * levels)[above].sum() / max(n_fg, 1))
     mean_bg = float((hist * levels)[~above].sum() / max(s.size - n_fg, 1))
     return t, n_fg, mean_fg, mean_bg
+
+
+@njit(cache=True, nogil=True)
+def _count_levels(s, hist):
+    """hist[v] += the number of pixels of the uint8 image (or strided view) ``s`` at level v."""
+    for i in range(s.shape[0]):
+        for j in range(s.shape[1]):
+            hist[s[i, j]] += 1.0
 
 
 def _otsu(hist: np.ndarray) -> float:
