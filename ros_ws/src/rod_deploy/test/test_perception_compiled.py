@@ -184,3 +184,13 @@ def test_level_counts_are_calchist():
             _count_levels(view, hist)
             ref = cv2.calcHist([np.ascontiguousarray(view)], [0], None, [256], [0, 256]).ravel().astype(np.float64)
             assert np.array_equal(hist, ref)
+
+
+def test_one_colour_evidence_is_the_table_difference():
+    from rod_deploy.perception.segmentation import foreground_evidence
+    rng = np.random.default_rng(12)
+    img = rng.integers(0, 256, (37, 53, 3)).astype(np.uint8)
+    for background in ((0.0, 0.0, 0.0), (1.0, 3.0, 3.0), (254.6, 12.5, 13.5), (128.2, 255.0, 0.4)):
+        grey = img.astype(np.int64) - np.array([round(v) for v in background])
+        for method, ref in (('contrast', np.abs(grey)), ('dark', np.maximum(-grey, 0)), ('bright', np.maximum(grey, 0))):
+            assert np.array_equal(foreground_evidence(img, background, method), ref.max(axis=2).astype(np.uint8))

@@ -114,11 +114,9 @@ def foreground_evidence(bgr: np.ndarray, background, method: str) -> np.ndarray:
     if isinstance(background, np.ndarray):
         _channel_max_difference(bgr, np.ascontiguousarray(background, dtype=np.uint8), polarity, s)
         return s
-    # one colour: per channel, a 256-entry table of the difference from it
-    grey = np.arange(256)[:, None] - np.array([round(v) for v in background])[None, :]
-    table = np.abs(grey) if polarity == 0 else np.maximum(-grey if polarity == 1 else grey, 0)
-    table = table.astype(np.uint8)
-    _channel_max_table(bgr.reshape(-1), *(np.ascontiguousarray(table[:, k]) for k in range(3)), s.reshape(-1))
+    # one colour (rounded to integers): the same differences from it, in integer arithmetic on the flat pixels
+    colour = [int(round(v)) for v in background]
+    _channel_max_from_colour(bgr.reshape(-1), colour[0], colour[1], colour[2], polarity, s.reshape(-1))
     return s
 
 
@@ -142,15 +140,20 @@ def _channel_max_difference(bgr, background, polarity, out):
 
 
 @njit(cache=True, nogil=True)
-def _channel_max_table(pixels, table_b, table_g, table_r, out):
-    """out[i] = max(table_b[B_i], table_g[G_i], table_r[R_i]) over the flat BGR ``pixels``, in one pass
-    (one 256-entry table per channel)."""
+def _channel_max_from_colour(pixels, c_b, c_g, c_r, polarity, out):
+    """out[i] = max over the channels of |I - c| (polarity 0), c - I (1) or I - c (2), clipped at 0, for the
+    flat BGR ``pixels`` and one background colour c: integer arithmetic only (no table look-ups)."""
     for i in range(out.size):
-        b = table_b[pixels[3 * i]]
-        g = table_g[pixels[3 * i + 1]]
-        r = table_r[pixels[3 * i + 2]]
-        m = b if b > g else g
-        out[i] = m if m > r else r
+        best = 0
+        for k in range(3):
+            c = c_b if k == 0 else (c_g if k == 1 else c_r)
+            d = np.int32(pixels[3 * i + k]) - np.int32(c)
+            if polarity == 0:
+                d = abs(d)
+            elif polarity == 1:
+                d = -d
+            best = max(best, d)
+        out[i] = best
 
 
 def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()) -> Segmentation:
