@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 from numba import njit
 
@@ -103,11 +104,12 @@ def skeleton_of(mask: np.ndarray) -> np.ndarray:
     mask's bounding box."""
     mask = np.asarray(mask, dtype=bool)
     out = np.zeros(mask.shape, dtype=bool)
-    rows = np.flatnonzero(mask.any(axis=1))
-    if rows.size == 0:
+    if not mask.size:
         return out
-    cols = np.flatnonzero(mask.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    c0, r0, w, h = cv2.boundingRect(mask.view(np.uint8))        # the object pixels' bounding box
+    if w == 0 or h == 0:
+        return out
+    r1, c1 = r0 + h, c0 + w
     out[r0:r1, c0:c1] = zhang_suen_thinning(mask[r0:r1, c0:c1])
     return out
 
