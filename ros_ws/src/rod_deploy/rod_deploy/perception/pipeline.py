@@ -44,6 +44,7 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
+from numba import njit
 
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
@@ -146,7 +147,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     mask, f = skeleton_mask(seg, config)
     graph = build_skeleton_graph(skeleton_of(mask))
-    skel_dist = cv2.distanceTransform(mask.view(np.uint8), cv2.DIST_L2, 3)
+    skel_dist = distance_map(mask)
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
     ws = w / f
     t2 = time.perf_counter()
@@ -193,7 +194,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1), lazily
         if dist[0] is None:
-            dist[0] = cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
+            dist[0] = distance_map(seg.mask)
         return _lookup(dist[0], p)
 
     if len(traced) > 1:
@@ -275,6 +276,20 @@ def skeleton_mask(seg: Segmentation, config: PerceptionConfig = PerceptionConfig
     return half, 2
 
 
+def distance_map(mask: np.ndarray) -> np.ndarray:
+    """``cv2.distanceTransform(mask, DIST_L2, 3)`` of a bool mask, computed on the rows of its bounding box
+    and one background row either side (or the image border): every chamfer path from inside to the
+    background outside crosses such a row, so the values are the same, bit for bit (checked on random masks
+    in the tests; a crop of the columns is not: OpenCV's vectorised passes round differently there)."""
+    out = np.zeros(mask.shape, np.float32)
+    _, r, w, h = cv2.boundingRect(mask.view(np.uint8))
+    if w == 0 or h == 0:
+        return out
+    r0, r1 = max(r - 1, 0), min(r + h + 1, mask.shape[0])
+    out[r0:r1] = cv2.distanceTransform(mask[r0:r1].view(np.uint8), cv2.DIST_L2, 3)
+    return out
+
+
 def _centreline_width(graph, dist, f, w, mismatch):
     """The stroke width: the segmentation's 2 area / perimeter ``w``, unless the skeleton's chains longer
     than 6 w, pooled, sit in a mask more than ``mismatch`` times wider (median of 2 d - 1 on them, d the distance to the
@@ -287,14 +302,34 @@ def _centreline_width(graph, dist, f, w, mismatch):
 
 
 def _lookup(image, points):
-    """``image`` at the pixels nearest to (row, col) ``points`` (clipped to the image)."""
-    p = np.round(points).astype(int)
-    return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
-                 np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    """``image`` at the pixels nearest to (row, col) ``points`` (rounded half to even, as np.round; clipped
+    to the image), compiled for float point arrays."""
+    points = np.asarray(points)
+    if points.dtype != np.float64 or points.ndim != 2 or image.ndim != 2:
+        p = np.round(points).astype(int)
+        return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
+                     np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    out = np.empty(len(points), image.dtype)
+    _lookup_kernel(image.view(np.uint8) if image.dtype == bool else image, points,
+                   out.view(np.uint8) if image.dtype == bool else out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _lookup_kernel(image, points, out):
+    h, w = image.shape
+    for i in range(points.shape[0]):
+        out[i] = image[min(max(int(np.rint(points[i, 0])), 0), h - 1), min(max(int(np.rint(points[i, 1])), 0), w - 1)]
 
 
 def _median_evidence(evidence, points):
-    return float(np.median(_lookup(evidence, points)))
+    """``np.median`` of the (uint8) evidence at ``points``: the middle value, or the mean of the two middle
+    ones in float64, without np.median's per-call overhead."""
+    v = np.sort(_lookup(evidence, points))
+    if not len(v):
+        return float('nan')
+    h = len(v) // 2
+    return float(v[h]) if len(v) % 2 else (float(v[h - 1]) + float(v[h])) / 2
 
 
 def _crossing_zones(crossings, w):
