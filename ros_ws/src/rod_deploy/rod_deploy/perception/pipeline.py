@@ -29,8 +29,9 @@ sub-pixel refinement.
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
-    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), arc-length resampling
-    every ``step_px``.
+    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), a small self loop whose
+    hole the mask closes re-traced round its blob (:func:`~.filled_loops.trace_filled_loop`), arc-length
+    resampling every ``step_px``.
 
 Objects are numbered by decreasing length. An open path starts at its end with the smaller column
 (leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in
