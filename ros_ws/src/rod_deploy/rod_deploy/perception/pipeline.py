@@ -29,8 +29,9 @@ sub-pixel refinement.
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
-    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), arc-length resampling
-    every ``step_px``.
+    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), a small self loop whose
+    hole the mask closes re-traced round its blob (:func:`~.filled_loops.trace_filled_loop`), arc-length
+    resampling every ``step_px``.
 
 Objects are numbered by decreasing length. An open path starts at its end with the smaller column
 (leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in
@@ -49,6 +50,7 @@ from numba import njit
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
 from rod_deploy.perception.crossing_order import colour_sampler, decide_crossings
+from rod_deploy.perception.filled_loops import trace_filled_loop
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
                                                 estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
@@ -218,6 +220,11 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
                                                   config.min_colour_separation)
+            if not obj.closed:
+                half_width_at(obj.points[:1])                  # the full-resolution distance map, once
+                refined.points = trace_filled_loop(refined.points, dist[0],
+                                                   [o.points for o in traced if o is not obj],
+                                                   [obj.points[i0:i1 + 1] for _, i0, i1 in obj.passes])
         else:
             pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
             width = w
