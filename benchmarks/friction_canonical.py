@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from pyelastica_replay import CentrelineCoulombPlane, _Simulator, ea, rod_material, rotary_inertia_scaled  # noqa: E402
+from pyelastica_replay import (CentrelineCoulombPlane, NodalCoulombStickPlane, _Simulator, ea,  # noqa: E402
+                               rod_material, rotary_inertia_scaled)
 from results_dir import add_results_argument, results_path  # noqa: E402
 
 from rod_deploy.deployment.simulate import material_parameters  # noqa: E402
@@ -61,7 +62,8 @@ class ElasticaCase:
     dt_s: float = 3e-4
     slip_tol: float = 1e-4
     element_m: float = 0.01
-    friction_law: str = 'pyelastica'    # or 'centreline' (CentrelineCoulombPlane: no rolling)
+    friction_law: str = 'pyelastica'    # or 'centreline' (CentrelineCoulombPlane: no rolling), 'stick'
+    #                                     (NodalCoulombStickPlane: no rolling, stick / slip over the step)
     damping_per_s: float = DAMPING
     only_a: bool = False                # a diagnostic of case (a) only
 
@@ -84,7 +86,11 @@ ELASTICA_CASES = [ElasticaCase('PyElastica as in the replay (rotary x100, dt 3e-
                   ElasticaCase('PyElastica, centreline Coulomb, 5 mm elements (dt 1.5e-4)', friction_law='centreline',
                                element_m=0.005, dt_s=1.5e-4, only_a=True),
                   ElasticaCase('PyElastica, centreline Coulomb, damping 20/s (the release transient damped)',
-                               friction_law='centreline', damping_per_s=20.0, only_a=True)]
+                               friction_law='centreline', damping_per_s=20.0, only_a=True),
+                  ElasticaCase('PyElastica, nodal Coulomb stick / slip (no rolling, no slip tolerance; rotary x100)',
+                               friction_law='stick'),
+                  ElasticaCase('PyElastica, nodal Coulomb stick / slip, 5 mm elements (dt 1.5e-4)',
+                               friction_law='stick', element_m=0.005, dt_s=1.5e-4, only_a=True)]
 DER_CASES = [DerCase('our DER, friction regularisation 1e-4 m/s (deployments)'),
              DerCase('our DER, regularisation 1e-5 m/s', friction_velocity=1e-5),
              DerCase('our DER, regularisation 1e-6 m/s', friction_velocity=1e-6),
@@ -153,6 +159,9 @@ def elastica_run(case: ElasticaCase, nodes0, t_end, body_acc=(0, 0, 0), t_on=0.0
     if case.friction_law == 'centreline':
         sim.detect_contact_between(rod_e, plane).using(CentrelineCoulombPlane, k=200.0, nu=0.1, mu=MU,
                                                        slip_velocity_tol=case.slip_tol)
+    elif case.friction_law == 'stick':
+        sim.detect_contact_between(rod_e, plane).using(NodalCoulombStickPlane, k=200.0, nu=0.1, mu=MU,
+                                                       dt=case.dt_s)
     else:
         sim.detect_contact_between(rod_e, plane).using(
             ea.RodPlaneContactWithAnisotropicFriction, k=200.0, nu=0.1, slip_velocity_tol=case.slip_tol,
@@ -266,10 +275,14 @@ def l_star(kappa):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--only', choices=('a', 'b'), default=None)
+    ap.add_argument('--cases', default=None, help='only the set-ups whose name contains this text')
+    ap.add_argument('--tag', default='', help='suffix of the results file')
     add_results_argument(ap)
     args = ap.parse_args()
     wall = time.perf_counter()
     runs = [(c, elastica_run, c.element_m) for c in ELASTICA_CASES] + [(c, der_run, c.edge_m) for c in DER_CASES]
+    if args.cases:
+        runs = [r for r in runs if args.cases in r[0].name]
     b_rows, a_rows = [], []
     for case, runner, dl in runs:
         t0 = time.perf_counter()
@@ -290,7 +303,7 @@ def main():
                   f'{1e3 * lr:.1f} mm (l* {1e3 * l_star(10.0):.1f} mm), middle moved {1e3 * centre:.2f} mm, '
                   f'median roll {roll:.1f} deg', flush=True)
         print(f'    ({time.perf_counter() - t0:.0f} s)', flush=True)
-    out = results_path(args, 'friction_canonical.md')
+    out = results_path(args, f'friction_canonical{args.tag}.md')
     lines = ['# Canonical friction cases in both simulators, `benchmarks/friction_canonical.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - wall:.0f} s in all. '
              f'Rod #3 material, mu = {MU}, damping {DAMPING:g}/s. See the script\'s docstring for the set-ups.', '']

@@ -9,8 +9,11 @@ rod simulator, used as a library) and score the deployed shape with our Eq. 17.
 Set-up, the same as our simulator's (``rod_deploy.deployment.simulate``, CONTRACTS.md section 4) but in another
 model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet steps) of the rod's E, density and
 radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
-plane's response force) with Coulomb friction on the elements' centreline velocity (``CentrelineCoulombPlane``,
-PyElastica's static / kinetic switch at the slip tolerance; ``--friction-law pyelastica``: PyElastica's own
+plane's response force) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
+step (``NodalCoulombStickPlane``, the default since issue #10's third look: a sticking node is held still at any load
+up to mu N; ``--friction-law centreline``: ``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the
+slip tolerance on the elements, under which a laid rod loaded below mu N creeps (the published circle's free end
+0.1 mm/s after the release); ``--friction-law pyelastica``: PyElastica's own
 ``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
 a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
@@ -79,7 +82,8 @@ class ElasticaSettings:
     settle_s: float = 1.0             # gripper still at the end
     contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
-    friction_law: str = 'centreline'  # CentrelineCoulombPlane, or 'pyelastica' (RodPlaneContactWithAnisotropicFriction)
+    friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane: creeps),
+    #                                   'pyelastica' (RodPlaneContactWithAnisotropicFriction: creeps and rolls)
 
 
 def rotary_inertia_scaled(rod_e, scale):
@@ -151,6 +155,69 @@ class CentrelineCoulombPlane(ea.NoContact):
                             system_one.velocity_collection, system_one.internal_forces, system_one.external_forces)
 
 
+@njit(cache=True)
+def _nodal_coulomb_stick(origin, normal, surface_tol, k, nu, mu, dt, radius, mass, position, velocity,
+                         internal_forces, external_forces):
+    """PyElastica's rod-plane normal force, then Coulomb friction on the nodes' centreline velocity as a stick /
+    slip projection over the step: a node in contact (normal force N: half of each adjacent element's) gets the
+    tangential force that stops it within this step, -(F_t + m v_t / dt), when that is within mu N (sticking, the
+    node then stays exactly still), else mu N against its trial velocity v_t + dt F_t / m (slipping). The
+    position-Verlet velocity update v += dt (F + f) / m then gives v_t = 0 on a sticking node."""
+    n_mag, no_contact = _calculate_contact_forces_rod_plane(origin, normal, surface_tol, k, nu, radius, mass,
+                                                            position, velocity, internal_forces, external_forces)
+    n_el = n_mag.shape[0]
+    in_contact = np.ones(n_el)
+    for j in no_contact:
+        in_contact[j] = 0.0
+    n_node = np.zeros(n_el + 1)
+    for j in range(n_el):
+        n_node[j] += 0.5 * in_contact[j] * n_mag[j]
+        n_node[j + 1] += 0.5 * in_contact[j] * n_mag[j]
+    for i in range(n_el + 1):
+        if n_node[i] <= 0.0:
+            continue
+        f = internal_forces[:, i] + external_forces[:, i]
+        fn = f[0] * normal[0] + f[1] * normal[1] + f[2] * normal[2]
+        v = velocity[:, i]
+        vn = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2]
+        stick = -(f - fn * normal) - mass[i] * (v - vn * normal) / dt
+        s_mag = math.sqrt(stick[0] ** 2 + stick[1] ** 2 + stick[2] ** 2)
+        limit = mu * n_node[i]
+        if s_mag > limit:
+            stick *= limit / s_mag            # slipping: mu N against the trial velocity (= -stick direction)
+        external_forces[:, i] += stick
+
+
+class NodalCoulombStickPlane(ea.NoContact):
+    """Rod-plane contact with Coulomb friction on the nodes' centreline velocity, stick / slip over the step
+    (``--friction-law stick``; see ``_nodal_coulomb_stick``).
+
+    Why: PyElastica's static friction (in its own law and in ``CentrelineCoulombPlane``) cancels the element's
+    current tangential force up to mu N while the element moves slower than the slip tolerance, but not its velocity,
+    and its kinetic friction changes a slipping element's velocity by mu g dt = 1.5e-3 m/s per step (dt 3e-4 s), 15x
+    the tolerance, so an element braked by it overshoots the sticking band instead of landing in it. A laid rod under
+    a sustained load below mu N creeps: the published circle's free end moves 0.1 mm/s for 50 s after the gripper
+    has left it (``replay_probe.py``); the canonical arc creeps as much at slip tolerance 1e-5 as at 1e-4 m/s (3.2 mm
+    from 3 to 10 s) and 0.4x as much with half the step and half the element (``friction_canonical.md``; the two
+    were changed together): not the tolerance but, as far as measured, the step's friction impulse sets it.
+    Coulomb's law has no creep: the stick force here holds the node exactly, at any load up to mu N."""
+
+    def __init__(self, k, nu, mu, dt):
+        super().__init__()
+        self.k, self.nu, self.mu, self.dt = np.float64(k), np.float64(nu), np.float64(mu), np.float64(dt)
+        self.surface_tol = np.float64(1.0e-4)
+
+    @property
+    def _allowed_system_two(self):
+        return [ea.Plane]
+
+    def apply_contact(self, system_one, system_two, time=np.float64(0.0)):
+        _nodal_coulomb_stick(system_two.origin, system_two.normal, self.surface_tol, self.k, self.nu, self.mu,
+                             self.dt, system_one.radius, system_one.mass, system_one.position_collection,
+                             system_one.velocity_collection, system_one.internal_forces,
+                             system_one.external_forces)
+
+
 class _Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping, ea.Contact, ea.CallBacks):
     pass
 
@@ -196,11 +263,13 @@ class PrescribedEnds(ea.ConstraintBase):
             system.velocity_collection[:, 0] = 0.0
 
 
-def replay_in_elastica(cases, rod, friction, settings=None, progress=True):
+def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snapshot_every_s=None):
     """Replay trajectories in PyElastica, one rod per case (t, position, quaternion, start_xy or None), all in one
     simulator (PyElastica steps its rods as one memory block: a batch costs far less than the cases one by one; the
     rods do not touch each other). A case whose trajectory ends earlier keeps its gripper still until the last one
-    ends. Returns one dict(deployed_xy, nodes, gripper_path, replay_s) per case, and the wall time."""
+    ends. Returns one dict(deployed_xy, nodes, gripper_path, replay_s) per case, and the wall time.
+    ``snapshot_every_s``: also keep every rod's nodes every that many simulated seconds (``snapshots``: list of
+    (time, (n, 3) nodes); a diagnostic)."""
     from scipy.spatial.transform import Rotation, Slerp
     s = settings or ElasticaSettings()
     wall = time.perf_counter()
@@ -240,6 +309,9 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True):
             sim.detect_contact_between(rod_e, plane).using(
                 CentrelineCoulombPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction,
                 slip_velocity_tol=s.slip_velocity_tol_m_s)
+        elif s.friction_law == 'stick':
+            sim.detect_contact_between(rod_e, plane).using(
+                NodalCoulombStickPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction, dt=s.dt_s)
         else:
             sim.detect_contact_between(rod_e, plane).using(
                 ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
@@ -253,22 +325,28 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True):
     steps = int(math.ceil(t_total / s.dt_s))
     now = np.float64(0.0)
     report = max(steps // 50, 1)
+    snap_every = int(round(snapshot_every_s / s.dt_s)) if snapshot_every_s else 0
+    snaps = [[] for _ in rods]
     for k in range(steps):
         now = stepper.step(sim, now, s.dt_s)
+        if snap_every and (k + 1) % snap_every == 0:
+            for i, rod_e in enumerate(rods):
+                snaps[i].append((float(now), rod_e.position_collection.T.copy()))
         if progress and (k + 1) % report == 0:
             print(f'\r  pyelastica {len(cases)} rods, {100 * (k + 1) / steps:3.0f}% of {t_total:.0f} s simulated '
                   f'({time.perf_counter() - wall:.0f} s)', end='', file=sys.stderr, flush=True)
     if progress:
         print(file=sys.stderr)
     out = []
-    for rod_e, grid_p, sched in zip(rods, grids, scheds):
+    for rod_e, grid_p, sched, snap in zip(rods, grids, scheds, snaps):
         nodes = rod_e.position_collection.T.copy()
         if not np.all(np.isfinite(nodes)):
             raise ValueError('PyElastica diverged (reduce --dt)')
         on_table = nodes[:, 2] <= h + s.contact_tolerance_m
         k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(nodes)
         out.append({'deployed_xy': nodes[:k_end, :2], 'nodes': nodes, 'gripper_path': grid_p,
-                    'replay_s': float(sched.t[-1])})
+                    'replay_s': float(sched.t[-1]), 'snapshots': snap,
+                    't_release_s': s.hang_settle_s + sched.t_release})
     return out, time.perf_counter() - wall
 
 
@@ -364,9 +442,12 @@ def main():
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
     ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
                     help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
-    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline'), default=ElasticaSettings.friction_law,
-                    help="PyElastica's anisotropic friction (sideways on the rolling slip) or Coulomb friction on "
-                         'the centreline (no rolling; see CentrelineCoulombPlane)')
+    ap.add_argument('--friction-law', choices=('pyelastica', 'centreline', 'stick'),
+                    default=ElasticaSettings.friction_law,
+                    help="stick: Coulomb friction on the nodes, stick / slip over the step (NodalCoulombStickPlane, "
+                         "no creep); centreline: on the elements with PyElastica's slip-tolerance switch "
+                         "(CentrelineCoulombPlane, creeps); pyelastica: PyElastica's anisotropic friction (creeps, "
+                         'and rolls sideways)')
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--tag', default='', help='suffix of the results files')
     ap.add_argument('--merge', nargs='+', metavar='JSON',
@@ -481,6 +562,9 @@ def _write(out, rows, checks, s, wall):
              f'{s.damping_per_s:g}/s, rod-plane contact k {s.contact_k_n_m:g} N/m nu {s.contact_nu_n_s_m:g} N s/m '
              + (f'with Coulomb friction on the centreline (`CentrelineCoulombPlane`: no rolling; static / kinetic '
                 f'switch at slip tolerance {s.slip_velocity_tol_m_s:g} m/s)' if s.friction_law == 'centreline' else
+                'with Coulomb friction on the nodes\' centreline velocity, stick / slip over the step '
+                '(`NodalCoulombStickPlane`: no rolling, no slip tolerance, a sticking node held still)'
+                if s.friction_law == 'stick' else
                 f'with PyElastica\'s friction (static / kinetic mu, slip tolerance {s.slip_velocity_tol_m_s:g} m/s, '
                 f'sideways on the rolling slip)') + f'; hanging {s.hang_settle_s:g} s first, gripper at 0.01 m/s, '
              f'{s.settle_s:g} s still at the end. Eq. 17, N = 50 (ours). "ours": our DER simulator\'s e_mean '

@@ -12,10 +12,12 @@ model and kept only on strong statistical evidence confirmed by a simulation (se
 ``rod_deploy.deployment.correction``). Writes DIR/report.json (parameters, effects_added with name, parameters,
 evidence, error_before, error_after; warnings), DIR/correction.png (prescribed vs deployed, before and after),
 DIR/rod_fitted.yaml; with ``--replan`` DIR/traj_corrected.csv planned with the fitted rod, and with ``--simulate``
-its deployment predicted by the fitted simulator (error_after.e_mean_cm). Prints one summary line. The simulation
+its deployment predicted by the fitted simulator (error_after.e_mean_cm); a fitted natural curvature or friction,
+which the planner does not model, is pre-compensated only with ``--simulate`` (the planner given a modified pattern,
+the fitted simulator in the loop; report.replan.precompensation). Prints one summary line. The simulation
 settings must be those that produced a simulated deployment (defaults: those of ``rod-deploy simulate``); each
-simulation of a 0.9 m rod takes 1-5 minutes here, and the loop runs 1 (nothing to explain) to 1 + (number of
-effects) + 4 (confirmations) + 2 (replanning) simulations.
+simulation of a 0.9 m rod takes 10-40 s here, and the loop runs 1 (nothing to explain) to 1 + (number of
+effects) + 4 (confirmations) + 2 (replanning) + 4 (pre-compensation) simulations.
 """
 from __future__ import annotations
 

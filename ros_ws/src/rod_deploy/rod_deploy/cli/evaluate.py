@@ -8,6 +8,7 @@ pattern and deployed lengths [m], coverage (deployed / pattern length), and whic
 from __future__ import annotations
 
 import json
+import sys
 
 from rod_deploy.cli.main import CliError
 
@@ -38,4 +39,12 @@ def run(args) -> int:
     except ValueError as e:
         raise CliError(str(e)) from None
     print(json.dumps(eq17_error(pattern, deployed, n=args.n, directed=args.directed)))
+    from rod_deploy.planning.pattern_input import sparse_points_note
+    from rod_deploy.planning.trajectory import process_pattern
+    try:
+        note = sparse_points_note(pattern, process_pattern(pattern).xy)
+    except ValueError:                   # a pattern the planner could not take: nothing to compare with
+        note = None
+    if note:
+        print(f'rod-deploy evaluate: note: {note}', file=sys.stderr)
     return 0

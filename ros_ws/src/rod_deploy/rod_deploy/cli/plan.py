@@ -21,6 +21,9 @@ import sys
 
 from rod_deploy.cli.main import CliError
 
+#: a friction-limited start further than this from the pattern is reported on stderr [m]
+START_NOTE_M = 0.005
+
 
 def register(subparsers):
     p = subparsers.add_parser('plan', help='gripper trajectory for a pattern (Alg. 4): nn, numeric or intuitive',
@@ -80,13 +83,32 @@ def run(args) -> int:
                'planning_time_s': round(plan.timings_s['total'], 4)}
     if plan.method != 'intuitive':                      # the intuitive baseline follows the pattern as given
         summary['start'] = settings.start
+        replaced_m, dev_m = plan.start_replacement()
+        summary['start_replaced_m'] = round(replaced_m, 4)
+        summary['start_max_deviation_m'] = round(dev_m, 4)
+        given = plan.pattern_as_given if plan.pattern_as_given is not None else plan.pattern
+        summary['pattern_max_abs_kappa_bar'] = round(float(abs(given.kappa).max()) * rod.gravito_bending_length_m, 4)
     if args.plot:
         from rod_deploy.deployment.plots import plot_plan
         plot_plan(args.plot, plan)
         summary['plot'] = str(args.plot)
     print(json.dumps(summary))
+    from rod_deploy.planning.pattern_input import sparse_points_note
+    note = sparse_points_note(points, (plan.pattern_as_given or plan.pattern).xy)
+    if note:
+        print(f'rod-deploy plan: note: {note}', file=sys.stderr)
+    if summary.get('start_max_deviation_m', 0.0) > START_NOTE_M:
+        print(f'rod-deploy plan: note: the friction-limited start (--start achievable) replaces the first '
+              f'{summary["start_replaced_m"]:.3f} m of the pattern by a curve up to '
+              f'{1000 * summary["start_max_deviation_m"]:.0f} mm away from it (the free end cannot hold the '
+              f'pattern\'s curvature there); --start tangent plans every node on the pattern', file=sys.stderr)
+    kappa_bar_given = summary.get('pattern_max_abs_kappa_bar', summary['max_abs_kappa_bar'])
     if summary['max_abs_kappa_bar'] > 1.0:
-        print(f'rod-deploy plan: note: the pattern bends with |kappa_bar| up to {summary["max_abs_kappa_bar"]:.2g} '
+        # the planned curve's largest bend: the replaced (friction-limited) start may bend more than the pattern
+        what = 'the pattern bends'
+        if summary['max_abs_kappa_bar'] > kappa_bar_given + 0.01:
+            what = f'the planned curve (the pattern as drawn: up to {kappa_bar_given:.2g}, its replaced start more) bends'
+        print(f'rod-deploy plan: note: {what} with |kappa_bar| up to {summary["max_abs_kappa_bar"]:.2g} '
               f'(radius {rod.gravito_bending_length_m / summary["max_abs_kappa_bar"]:.3g} m); in our simulations '
               'deployments lose accuracy where |kappa_bar| > 1 (radius < L_gb): consider --smoothing or a larger '
               'drawing', file=sys.stderr)

@@ -11,7 +11,11 @@ Candidate effects (:data:`EFFECTS`), one parameter each: a natural (rest) curvat
 (``natural_curvature_per_m``, 0 declared), a wrong gravito-bending length (``L_gb_m``: a stiffer or softer rod lags or
 leads along the pattern and turns its bends with offsets that scale with L_gb), and a lower Coulomb friction
 (``friction``: the laid part creeps towards the gripper). Each costs one simulation with the parameter perturbed
-(finite-difference sensitivities J of the residual). Effects are added by forward selection, each scored by the
+(finite-difference sensitivities J of the residual); the natural curvature two, one per sign, each a candidate
+fitted on its own side only (the laid rod rolls differently for the two signs, so the response is not odd: with the
+positive step alone a rod with -3 /m on a left turn was fitted as a wrong L_gb, and on the letter U as +2.75 /m); a
+sensitivity that cannot be simulated (the rod curls off the table) is retried at half the step, then dropped with a
+warning. Effects are added by forward selection, each scored by the
 Bayesian information criterion
 
     BIC_k = n ln((RSS_k + n sigma_floor^2) / n) + k ln n,   n = 2 n_points,
@@ -26,13 +30,27 @@ the residual sum of squares by at least ``min_rss_drop`` with the same strong BI
 Broyden-updated sensitivities is tried when the first falls short: the response is not linear over the range of
 real errors; at most ``max_confirmations`` confirming simulations in all).
 
-Replanning (:func:`replan`, only when an effect was added): the planner takes the fitted L_gb directly; a natural
-curvature or a lower friction are not in its model (they only enter the prediction). The replanned trajectory is
-simulated with the fitted rod and kept only if it is predicted to deploy better than the original one; if not, and
-L_gb was fitted, the planner's L_gb on the other side of the declared one is tried (the planner has its own bias in
-L_gb on short rods, which the fitted model shows). (Pre-compensating the pattern against the predicted
-deviation was tried and made a naturally curved rod's deployment worse: the planner's response to a pattern moved by
-a few mm is not that shift.)
+Replanning (:func:`replan`, only when an effect was added): the planner takes the fitted L_gb directly. The
+replanned trajectory is simulated with the fitted rod and kept only if it is predicted to deploy better than the
+original one; if not, and L_gb was fitted, the planner's L_gb on the other side of the declared one is tried (the
+planner has its own bias in L_gb on short rods, which the fitted model shows). A fitted natural curvature or lower
+friction is not in the planner's model; with ``simulate`` it is pre-compensated with the FITTED simulator in the loop
+(:func:`precompensate`): plan for a template T (T_0 = the pattern P, with the best trajectory so far), simulate it
+with the fitted rod (deployment D), T_{k+1} = T_best + gain (P - D_best) read at the same arc lengths (P - D
+smoothed along the pattern, Gaussian sigma 2 cm; gain 1, halved after a worse prediction or a failed simulation; the
+first point kept on P's), at most 4 simulations, the trajectory predicted best kept (the original included); the
+iteration is erratic (benchmarks/results/natural_curvature_correction.md). Without ``simulate`` nothing is
+pre-compensated.
+
+Why not plan with an effective curvature kappa_pattern - kappa0: the laid rod's material frame is not fixed
+(``benchmarks/natural_curvature_frame.py``): a clean rod lies with d1 up (the frame the simulator's
+``NATURAL_CURVATURE_SIGN`` assumes) for every direction, turning sense (the network's mirroring) and start, but a
+rod with a natural curvature rolls about its axis as it is laid, by 18-26 degrees where the pattern is straight or
+turns with kappa0, and by about 80 degrees where it turns against it (its rest curvature then bends out of the
+table's plane). The in-plane effect is therefore neither kappa0 nor linear in it (on a 15 cm line a 0.3 m rod with
+3 /m turns by about 1 /m more), and planning a line as an arc of curvature -kappa0 (or +kappa0) laid it 10x worse
+than ignoring kappa0 (e_mean 1.31 / 1.04 cm against 0.11 cm), the opposite sign less badly. The simulator models the
+roll; the pre-compensation inherits it.
 """
 from __future__ import annotations
 
@@ -58,6 +76,7 @@ class Effect:
     key: str              # parameter name in the report
     name: str             # what it is, for people
     unit: str
+    side: float = 1.0     # natural curvature: the sign of the finite-difference step and of the fitted value
 
     def nominal(self, rod: RodDescription) -> float:
         if self.key == 'natural_curvature_per_m':
@@ -69,7 +88,7 @@ class Effect:
     def step(self, rod: RodDescription) -> float:
         """Finite-difference step of the sensitivity (a clearly visible but moderate change)."""
         if self.key == 'natural_curvature_per_m':
-            return 0.2 / rod.gravito_bending_length_m          # a bend of radius 5 L_gb
+            return self.side * 0.2 / rod.gravito_bending_length_m    # a bend of radius 5 L_gb, on its side
         if self.key == 'L_gb_m':
             return 0.15 * rod.gravito_bending_length_m
         return -0.5 * rod.friction                             # towards too little friction
@@ -79,7 +98,8 @@ class Effect:
             return float(np.clip(value, 0.3 * rod.gravito_bending_length_m, 3.0 * rod.gravito_bending_length_m))
         if self.key == 'friction':                   # the effect is too little friction
             return float(np.clip(value, 0.02 * rod.friction, rod.friction))
-        return float(value)
+        nominal = self.nominal(rod)                  # natural curvature: on the side its sensitivity was taken
+        return float(nominal + self.side * max(self.side * (value - nominal), 0.0))
 
 
 EFFECTS = {
@@ -225,15 +245,29 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                                                       f'within the noise floor ({1e3 * settings.noise_floor_m:g} mm)'})
         return out
     # -- sensitivities: one simulation per candidate effect
-    effects = [EFFECTS[e] for e in settings.effects]
+    # a natural curvature is not odd in its sign (the laid rod rolls one way or the other, see the module doc):
+    # one sensitivity per sign, each fitted on its own side only
+    effects = [v for e in settings.effects for v in (
+        (EFFECTS[e], dataclasses.replace(EFFECTS[e], side=-1.0)) if e == 'natural_curvature' else (EFFECTS[e],))]
     if any(e.step(rod) == 0 for e in effects):                # friction declared 0: it cannot be lower
         out.warnings.append('the declared friction is 0: too little friction is not a candidate')
         effects = [e for e in effects if e.step(rod) != 0]
     J = np.zeros((n, len(effects)))
+    usable = []
     for j, e in enumerate(effects):
-        h = e.step(rod)
-        d = model.deployed(rod_with(rod, {e.key: e.nominal(rod) + h}), f'{e.key} + {h:.3g}')
-        J[:, j] = (sample(d, s) - sample(nominal_xy, s)).ravel() / h
+        for h in (e.step(rod), 0.5 * e.step(rod)):      # a rod curled off the table: a smaller step
+            try:
+                d = model.deployed(rod_with(rod, {e.key: e.nominal(rod) + h}), f'{e.key} + {h:.3g}')
+            except CorrectionError as err:
+                failed = str(err)
+                continue
+            J[:, j] = (sample(d, s) - sample(nominal_xy, s)).ravel() / h
+            usable.append(j)
+            break
+        else:
+            out.warnings.append(f'{e.key} {"< 0" if e.side < 0 else ""} is not a candidate: its sensitivity could not '
+                                f'be simulated ({failed})')
+    effects, J = [effects[j] for j in usable], J[:, usable]
     # -- forward selection: the effect whose linearised fit lowers BIC most (with the held-out check) is confirmed
     #    by a simulation; once confirmed, the next effect must lower the confirmed BIC further, and so on
     n_fit = int(round((1.0 - settings.holdout_fraction) * settings.n_points))
@@ -248,7 +282,7 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
     while budget > 0 and rss_cur > n * floor2:          # within the noise floor: nothing left to explain
         ranked = []
         for j in range(len(effects)):
-            if j in selected or j in rejected:
+            if j in selected or j in rejected or effects[j].key in [effects[k].key for k in selected]:
                 continue
             cols = selected + [j]
             Js = J[:, cols]
@@ -257,7 +291,8 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
             st_fit, _ = _lstsq(Js[fit_rows], r_cur[fit_rows])
             rh = r_cur[~fit_rows]
             held_before, held_after = float(rh @ rh), float(np.sum((rh - Js[~fit_rows] @ st_fit) ** 2))
-            cand = {'effects': [effects[k].key for k in cols], 'rss_drop': 1.0 - rss / rss_cur,
+            cand = {'effects': [effects[k].key + (' (< 0)' if effects[k].side < 0 else '') for k in cols],
+                    'rss_drop': 1.0 - rss / rss_cur,
                     'bic_change': bic - bic_cur, 'holdout_rms_before_m': math.sqrt(held_before / rh.size),
                     'holdout_rms_after_m': math.sqrt(held_after / rh.size)}
             out.candidates.append(cand)
@@ -281,7 +316,11 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                     break
                 values = {effects[k].key: float(v) for k, v in zip(cols, x)}
                 trial_rod = rod_with(rod, values)
-                d = model.deployed(trial_rod, 'fitted ' + ', '.join(values) + (' (2nd step)' if attempt else ''))
+                try:
+                    d = model.deployed(trial_rod, 'fitted ' + ', '.join(values) + (' (2nd step)' if attempt else ''))
+                except CorrectionError:                 # failed or laid nothing: not confirmed
+                    budget -= 1
+                    break
                 budget -= 1
                 r = (obs - sample(d, s)).ravel()
                 tries.append((float(r @ r), x.copy(), r, trial_rod, d))
@@ -356,49 +395,137 @@ class Replan:
     original_predicted_e_mean_cm: float | None
     simulations: int
     planner_L_gb_m: float | None          # the L_gb the planner was given (None: the original trajectory kept)
+    #: pre-compensation for fitted effects the planner does not model (None: not run): iterations, kept one
+    precompensation: dict | None = None
+
+
+@dataclass
+class PrecompensationSettings:
+    """Model-based iterative pre-compensation (:func:`precompensate`)."""
+    iterations: int = 4                   # simulations at most (one per planned template)
+    gain: float = 1.0                     # P_{k+1} = P_best + gain (P - D_best); halved after a worse one
+    min_gain: float = 0.2                 # stop once the gain falls below this
+    smoothing_m: float = 0.02             # Gaussian low-pass of the correction P - D along the arc length (sigma)
+
+
+def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, start, planner_settings,
+                  sim_settings, settings: PrecompensationSettings | None = None, progress=None):
+    """Plan for a modified pattern so that the FITTED simulator lays the rod on the pattern P.
+
+    ``start`` = (e_mean, Deployment, predicted deployment, replanned, planner L_gb): the best trajectory so far and
+    the fitted model's deployment of it, D_0; its template is P itself. Each iteration plans the template
+    T = T_best + gain (P - D_best) (P and D read at the same arc lengths from the free end, the template's first
+    point kept on P's: the free end is placed there; P - D smoothed by ``settings.smoothing_m``), simulates it with
+    the fitted rod (``rod``) and keeps it if its Eq. 17 e_mean (directed) is lower; otherwise (or when the
+    simulation fails or lays nothing) the gain is halved. The planner gets ``planner_rod`` (what it models: L_gb,
+    the friction of the start). Returns (best, simulations, record)."""
+    settings = settings or PrecompensationSettings()
+    from rod_deploy.planning.trajectory import PlanningError
+    P = np.asarray(pattern_xy, float)[:, :2]
+    t0 = time.perf_counter()
+    length = float(arc_length(P)[-1])
+    s = np.linspace(0.0, length, max(20, int(math.ceil(length / planner_settings.step_m)) + 1))
+    target = sample(P, s)
+    best, best_template = start, target
+    gain, count, history = settings.gain, 0, []
+    for k in range(settings.iterations):
+        if gain < settings.min_gain:
+            break
+        step = target - sample(best[2], s)
+        if settings.smoothing_m > 0:
+            from scipy.ndimage import gaussian_filter1d
+            step = gaussian_filter1d(step, settings.smoothing_m / (s[1] - s[0]), axis=0, mode='nearest')
+        template = best_template + gain * step
+        template[0] = target[0]
+        entry = {'iteration': k + 1, 'gain': gain}
+        try:
+            planned = plan_trajectory(template, planner_rod, planner_settings)
+        except PlanningError as e:
+            entry.update(accepted=False, note=f'not plannable: {e}')
+            history.append(entry)
+            gain *= 0.5
+            continue
+        dep = Deployment(planned.t, planned.position, planned.quaternion, tuple(template[0]))
+        model = ForwardModel(dep, sim_settings, progress)
+        try:
+            d = model.deployed(rod, f'pre-compensated plan {k + 1}, fitted rod')
+        except CorrectionError as e:             # failed, or laid nothing: a worse template
+            count += 1
+            entry.update(accepted=False, note=str(e))
+            history.append(entry)
+            gain *= 0.5
+            continue
+        count += 1
+        e = eq17_error(P, d, directed=True)['e_mean_cm']
+        entry.update(predicted_e_mean_cm=e, template_shift_max_mm=1e3 * float(np.max(np.linalg.norm(
+            template - target, axis=1))), accepted=bool(e < best[0]))
+        history.append(entry)
+        if e < best[0]:
+            best, best_template = (e, dep, d, True, planner_rod.gravito_bending_length_m), template
+        else:
+            gain *= 0.5
+    record = {'method': 'model-based iterative pre-compensation: plan for T_k, simulate with the fitted rod, '
+                        'T_{k+1} = T_best + gain (P - D_best), gain halved after a worse prediction, best kept',
+              'iterations': history, 'simulations': count, 'wall_time_s': time.perf_counter() - t0,
+              'start_predicted_e_mean_cm': start[0], 'predicted_e_mean_cm': best[0],
+              'template_kept': best_template is not target}
+    return best, count, record
+
+
+#: fitted parameters the planner takes directly; the others are pre-compensated with the fitted simulator
+PLANNER_MODELS = ('L_gb_m',)
 
 
 def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_settings: PlannerSettings,
-           sim_settings: SimulationSettings, simulate=True, progress=None) -> Replan:
+           sim_settings: SimulationSettings, simulate=True, progress=None,
+           precompensation: PrecompensationSettings | None = None) -> Replan:
     """The trajectory planned with the fitted rod; with ``simulate``, its deployment predicted by the fitted
     simulator (module doc). When that is predicted no better than the original trajectory and L_gb was fitted,
     the planner's L_gb is also tried on the other side of the declared one (declared^2 / fitted: the planner's own
-    bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included."""
+    bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included.
+    Fitted effects the planner does not model (natural curvature, friction) are then pre-compensated with the
+    fitted simulator in the loop (:func:`precompensate`; only with ``simulate``)."""
     pattern_xy = np.asarray(pattern_xy, float)
     rod = diagnosis.rod
-    if 'L_gb_m' not in diagnosis.fitted:             # nothing the planner models changed: its plan is the original
-        e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
-        return Replan(deployment.t, deployment.position, deployment.quaternion, False, diagnosis.fitted_xy, e_old,
-                      e_old, 0, None)
-    planned = plan_trajectory(pattern_xy, rod, planner_settings)
-    if not simulate:
-        return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0,
-                      rod.gravito_bending_length_m)
+    unmodelled = [k for k in diagnosis.fitted if k not in PLANNER_MODELS]
     e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
     best = (e_old, deployment, diagnosis.fitted_xy, False, None)
-    declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added if e['key'] == 'L_gb_m')
-    knobs = [rod.gravito_bending_length_m, declared ** 2 / rod.gravito_bending_length_m]
     count = 0
-    for k, planner_lgb in enumerate(knobs):
-        if k > 0 and best[3]:
-            break                                    # the fitted rod's plan already does better than the original
-        if k > 0:
-            planned = plan_trajectory(pattern_xy, rod_with(rod, {'L_gb_m': planner_lgb}), planner_settings)
-        model = ForwardModel(Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])),
-                             sim_settings, progress)
-        d = model.deployed(rod, f'corrected plan (planner L_gb {1e3 * planner_lgb:.1f} mm), fitted rod')
-        count += 1
-        e = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
-        if e < best[0]:
-            best = (e, Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])), d, True,
-                    planner_lgb)
+    if 'L_gb_m' in diagnosis.fitted:
+        planned = plan_trajectory(pattern_xy, rod, planner_settings)
+        if not simulate:
+            return Replan(planned.t, planned.position, planned.quaternion, True, None, None, None, 0,
+                          rod.gravito_bending_length_m)
+        declared = next(e['parameters']['L_gb_m_declared'] for e in diagnosis.effects_added
+                        if e['key'] == 'L_gb_m')
+        knobs = [rod.gravito_bending_length_m, declared ** 2 / rod.gravito_bending_length_m]
+        for k, planner_lgb in enumerate(knobs):
+            if k > 0 and best[3]:
+                break                                # the fitted rod's plan already does better than the original
+            if k > 0:
+                planned = plan_trajectory(pattern_xy, rod_with(rod, {'L_gb_m': planner_lgb}), planner_settings)
+            model = ForwardModel(Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])),
+                                 sim_settings, progress)
+            d = model.deployed(rod, f'corrected plan (planner L_gb {1e3 * planner_lgb:.1f} mm), fitted rod')
+            count += 1
+            e = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
+            if e < best[0]:
+                best = (e, Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])), d,
+                        True, planner_lgb)
+    record = None
+    if unmodelled and simulate:
+        planner_rod = rod if best[4] is None else rod_with(rod, {'L_gb_m': best[4]})
+        best, n, record = precompensate(pattern_xy, rod, planner_rod, best, planner_settings, sim_settings,
+                                        precompensation, progress)
+        count += n
     e, dep, d, replanned, planner_lgb = best
-    return Replan(dep.t, dep.position, dep.quaternion, replanned, d, e, e_old, count, planner_lgb)
+    return Replan(dep.t, dep.position, dep.quaternion, replanned, d, e, e_old, count, planner_lgb, record)
 
 
 def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment | None = None,
             planner_settings: PlannerSettings | None = None, sim_settings: SimulationSettings | None = None,
-            settings: CorrectionSettings | None = None, replan_trajectory=True, simulate=True, progress=None):
+            settings: CorrectionSettings | None = None, replan_trajectory=True, simulate=True, progress=None,
+            precompensation: PrecompensationSettings | None = None):
     """diagnose + replan; returns (report dict, Diagnosis, Replan or None)."""
     t0 = time.perf_counter()
     settings = settings or CorrectionSettings()
@@ -430,20 +557,24 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
     }
     rp = None
     if replan_trajectory and diag.effects_added:
-        rp = replan(pattern_xy, diag, deployment, planner_settings, sim_settings, simulate, progress)
+        rp = replan(pattern_xy, diag, deployment, planner_settings, sim_settings, simulate, progress,
+                    precompensation)
+        unmodelled = [k for k in diag.fitted if k not in PLANNER_MODELS]
         report['replan'] = {'replanned': rp.replanned, 'original_predicted_e_mean_cm': rp.original_predicted_e_mean_cm,
                             'planner_L_gb_m': rp.planner_L_gb_m,
-                            'planner_models': ['L_gb_m'],
-                            'not_in_the_planner': [k for k in diag.fitted if k != 'L_gb_m']}
-        if not rp.replanned and 'L_gb_m' in diag.fitted:
-            report['warnings'].append('the trajectory replanned with the fitted rod is predicted to deploy no better than '
-                                      'the original one, which is kept')
-        elif not rp.replanned:
-            report['warnings'].append('nothing the planner models was fitted: the corrected trajectory is the '
-                                      'original one')
-        if [k for k in diag.fitted if k != 'L_gb_m']:
-            report['warnings'].append('the planner does not model ' + ', '.join(k for k in diag.fitted if k != 'L_gb_m')
-                                      + ': the corrected trajectory only uses the fitted L_gb')
+                            'planner_models': list(PLANNER_MODELS),
+                            'not_in_the_planner': unmodelled,
+                            'precompensation': rp.precompensation}
+        if not rp.replanned and simulate:
+            report['warnings'].append('no replanned or pre-compensated trajectory is predicted by the fitted model to '
+                                      'deploy better than the original one, which is kept')
+        if unmodelled and not simulate:
+            report['warnings'].append('the planner does not model ' + ', '.join(unmodelled) + ': they are '
+                                      'pre-compensated only with --simulate (the fitted simulator in the loop); the '
+                                      'corrected trajectory only uses the fitted L_gb' if 'L_gb_m' in diag.fitted
+                                      else 'the planner does not model ' + ', '.join(unmodelled) + ': they are '
+                                      'pre-compensated only with --simulate (the fitted simulator in the loop); the '
+                                      'corrected trajectory is the original one')
         if not rp.replanned:
             report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
                                      'coverage': before['coverage'],
@@ -453,7 +584,8 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
             after = eq17_error(pattern_xy, rp.predicted_xy, directed=True)
             report['error_after'] = {'e_mean_cm': after['e_mean_cm'], 'sigma_cm': after['sigma_cm'],
                                      'coverage': after['coverage'],
-                                     'source': 'the corrected trajectory simulated with the fitted rod'}
+                                     'source': 'the corrected trajectory simulated with the fitted rod',
+                                     'fitted_model_e_mean_cm_of_the_original': rp.original_predicted_e_mean_cm}
     else:
         report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
                                  'coverage': before['coverage'], 'source': 'unchanged: no effect added'}

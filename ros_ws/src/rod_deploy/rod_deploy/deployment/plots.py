@@ -13,7 +13,14 @@ def plot_plan(path, plan):
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.6))
     P, g = plan.pattern.xy, plan.position
     k = plan.first_grasp_index
-    a.plot(P[:, 0], P[:, 1], 'k-', lw=2, label='pattern (smoothed, resampled)')
+    replaced_m, dev_m = plan.start_replacement() if hasattr(plan, 'start_replacement') else (0.0, 0.0)
+    if replaced_m > 0:       # the friction-limited start: draw the pattern as given and the curve planned instead
+        G = plan.pattern_as_given.xy
+        a.plot(G[:, 0], G[:, 1], '-', color='0.55', lw=4, alpha=0.5, label='pattern (smoothed, resampled)')
+        a.plot(P[:, 0], P[:, 1], 'k-', lw=1.5, label=f'planned curve: the first {100 * replaced_m:.0f} cm replaced '
+                                                      f'(up to {1000 * dev_m:.0f} mm off)')
+    else:
+        a.plot(P[:, 0], P[:, 1], 'k-', lw=2, label='pattern (smoothed, resampled)')
     a.plot(g[:k + 1, 0], g[:k + 1, 1], ':', color='tab:gray', label='lead-in from the hanging pose')
     a.plot(g[k:, 0], g[k:, 1], '-', color='tab:red', lw=1.2, label=f'gripper ({plan.method})')
     a.plot(P[0, 0], P[0, 1], 'o', color='k', ms=5, label='start (free end)')

@@ -31,6 +31,7 @@ from itertools import combinations
 
 import numpy as np
 
+from rod_deploy.perception.centreline import arc_length
 from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 
@@ -270,10 +271,7 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
     ``fit_px`` of arc, oriented towards the crossing.
     """
     points = points[:int(2 * (skip_px + fit_px)) + 3]           # only the start matters (1 px steps)
-    s = np.zeros(len(points))
-    if len(points) > 1:
-        d = points[1:] - points[:-1]
-        np.cumsum(np.hypot(d[:, 0], d[:, 1]), out=s[1:])
+    s = arc_length(points)                  # (compiled; the same cumulative sums)
     total = s[-1]
     skip = min(skip_px, max_fraction * total)
     i0 = min(int(s.searchsorted(skip)), len(points) - 1)

@@ -15,11 +15,14 @@ at the image border. Units: pixels, points (row, col).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
 from numba import njit
 from scipy.ndimage import gaussian_filter1d
+
+from rod_deploy.perception.crossing_order import _pairwise_sum
 
 
 @dataclass
@@ -32,9 +35,43 @@ class RefinedPath:
 
 
 def arc_length(points: np.ndarray) -> np.ndarray:
+    """Cumulative arc length [px] along (n, 2) points (0 at the first)."""
     if len(points) < 2:
         return np.zeros(len(points))
+    points = np.asarray(points)
+    if points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
+        return _arc_length(points)
     return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
+
+
+@njit(cache=True, nogil=True)
+def _arc_length(points):
+    """np.concatenate([[0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))]), the same sums in the same order."""
+    s = np.empty(points.shape[0])
+    s[0] = 0.0
+    for i in range(1, points.shape[0]):
+        step = np.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
+        s[i] = step if i == 1 else s[i - 1] + step
+    return s
+
+
+def path_length(points: np.ndarray) -> float:
+    """Length [px] of the polyline through (n, 2) ``points``: ``np.sum(np.hypot(*np.diff(points, axis=0).T))``,
+    the same pairwise sum, compiled."""
+    points = np.asarray(points)
+    if len(points) < 2:
+        return 0.0
+    if points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 2:
+        return float(_path_length(points))
+    return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
+
+
+@njit(cache=True, nogil=True)
+def _path_length(points):
+    steps = np.empty(points.shape[0] - 1)
+    for i in range(steps.size):
+        steps[i] = np.hypot(points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1])
+    return _pairwise_sum(steps, 0, steps.size)
 
 
 def resample(points: np.ndarray, step_px: float) -> np.ndarray:
@@ -46,8 +83,29 @@ def resample(points: np.ndarray, step_px: float) -> np.ndarray:
     if len(points) < 2 or s[-1] <= 0:
         return points[:1].copy()
     n = max(2, int(np.ceil(s[-1] / step_px)) + 1)
-    t = np.linspace(0.0, s[-1], n)
-    return np.stack([np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])], axis=1)
+    return _resample_at(np.ascontiguousarray(points), s, n)
+
+
+@njit(cache=True, nogil=True)
+def _resample_at(points, s, n):
+    """The (n, 2) points at arc lengths np.linspace(0, s[-1], n) along ``points`` (arc lengths ``s``, strictly
+    increasing): numpy's linspace and np.interp arithmetic (t_k = k step + 0, the last exactly s[-1]; between
+    s_j <= t < s_j+1: slope (t - s_j) + y_j with slope = (y_j+1 - y_j) / (s_j+1 - s_j); at a sample: y_j)."""
+    m = s.size
+    out = np.empty((n, 2))
+    step = (s[m - 1] - 0.0) / (n - 1)
+    j = 0
+    for k in range(n):
+        t = k * step + 0.0 if k < n - 1 else s[m - 1]
+        while j < m - 1 and s[j + 1] <= t:
+            j += 1
+        for c in range(2):
+            if j == m - 1 or s[j] == t:
+                out[k, c] = points[j, c]
+            else:
+                slope = (points[j + 1, c] - points[j, c]) / (s[j + 1] - s[j])
+                out[k, c] = slope * (t - s[j]) + points[j, c]
+    return out
 
 
 def smooth(points: np.ndarray, sigma_pts: float, closed: bool) -> np.ndarray:
@@ -57,14 +115,57 @@ def smooth(points: np.ndarray, sigma_pts: float, closed: bool) -> np.ndarray:
         return points.copy()
     if closed:
         body = points[:-1]
-        out = gaussian_filter1d(body, sigma_pts, axis=0, mode='wrap')
+        out = gaussian_filter(body, sigma_pts, wrap=True)
         return np.vstack([out, out[:1]])
     pad = min(len(points) - 1, int(np.ceil(4 * sigma_pts)))
     head = 2 * points[0] - points[pad:0:-1]
     tail = 2 * points[-1] - points[-2:-pad - 2:-1]
     ext = np.vstack([head, points, tail])
-    out = gaussian_filter1d(ext, sigma_pts, axis=0, mode='nearest')
+    out = gaussian_filter(ext, sigma_pts, wrap=False)
     return out[pad:pad + len(points)]
+
+
+def gaussian_filter(values: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
+    """``scipy.ndimage.gaussian_filter1d(values, sigma, axis=0, mode='wrap' if wrap else 'nearest')``, the same
+    numbers bit for bit (the same kernel, truncated at 4 sigma, and the same order of the sums, pairs of
+    samples symmetric about the centre first), compiled: on the short paths here scipy's per-call
+    overhead was most of the cost. Non-float64 input goes to scipy."""
+    values = np.asarray(values)
+    if values.dtype != np.float64 or values.ndim not in (1, 2) or not len(values):
+        return gaussian_filter1d(values, sigma, axis=0, mode='wrap' if wrap else 'nearest')
+    columns = values.reshape(len(values), -1)
+    return _symmetric_correlate(columns, _gaussian_weights(float(sigma)), wrap).reshape(values.shape)
+
+
+@lru_cache(maxsize=16)
+def _gaussian_weights(sigma: float) -> np.ndarray:
+    """The normalised Gaussian kernel, radius int(4 sigma + 0.5) samples."""
+    radius = int(4.0 * sigma + 0.5)
+    x = np.arange(-radius, radius + 1)
+    phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
+    return (phi / phi.sum())[::-1].copy()
+
+
+@njit(cache=True, nogil=True)
+def _symmetric_correlate(x, weights, wrap):
+    """Each column of ``x`` correlated with the symmetric ``weights``, the ends extended periodically
+    (``wrap``) or with the end sample: out_i = x_i w_0 + sum_{j = r..1} (x_{i-j} + x_{i+j}) w_j, in that order."""
+    n, m = x.shape
+    r = (weights.size - 1) // 2
+    out = np.empty((n, m))
+    ext = np.empty(n + 2 * r)
+    for c in range(m):
+        for i in range(n + 2 * r):
+            k = i - r
+            k = k % n if wrap else min(max(k, 0), n - 1)
+            ext[i] = x[k, c]
+        for i in range(n):
+            p = i + r
+            acc = ext[p] * weights[r]
+            for j in range(-r, 0):
+                acc += (ext[p + j] + ext[p - j]) * weights[r + j]
+            out[i, c] = acc
+    return out
 
 
 def tangents(points: np.ndarray, closed: bool) -> np.ndarray:
@@ -85,11 +186,23 @@ def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray,
                   step_px: float = 0.5):
     """Evidence sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals."""
     offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
-    rows = points[:, 0:1] + offsets[None, :] * normals[:, 0:1]
-    cols = points[:, 1:2] + offsets[None, :] * normals[:, 1:2]
-    prof = cv2.remap(evidence, cols.astype(np.float32), rows.astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)
+    cols, rows = _profile_maps(np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64), offsets)
+    prof = cv2.remap(evidence, cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return prof, offsets
+
+
+@njit(cache=True, nogil=True)
+def _profile_maps(points, normals, offsets):
+    """float32 (col, row) maps of the samples p + o n (computed in float64, then rounded to float32, as numpy
+    does with points[:, k:k+1] + offsets[None, :] * normals[:, k:k+1])."""
+    n, k = points.shape[0], offsets.size
+    cols = np.empty((n, k), np.float32)
+    rows = np.empty((n, k), np.float32)
+    for i in range(n):
+        for j in range(k):
+            rows[i, j] = np.float32(points[i, 0] + offsets[j] * normals[i, 0])
+            cols[i, j] = np.float32(points[i, 1] + offsets[j] * normals[i, 1])
+    return cols, rows
 
 
 def _parabolic_peak(g: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -248,22 +361,30 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     if exclude is not None:
         ok &= ~exclude(pts[idx])
     if ok.sum() >= 3:
-        w_med = float(np.median(width[ok]))
+        w_med = float(_median(width[ok]))
         ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
     widths = np.full(len(pts), np.nan)
     widths[idx[ok]] = width[ok]
     if ok.sum() >= 3:
         i = np.arange(len(pts))
         delta = np.interp(i, idx[ok], centre[ok])
-        delta = gaussian_filter1d(delta, 2.0, mode='wrap' if closed else 'nearest')
+        delta = gaussian_filter(delta, 2.0, wrap=closed)
         pts = pts + delta[:, None] * normals
-        w_obj = float(np.median(width[ok]))
+        w_obj = float(_median(width[ok]))
     else:
         w_obj = float('nan')
     pts = smooth(pts, sigma_px, closed)
     if closed:
         pts[-1] = pts[0]
     return RefinedPath(pts, w_obj, closed, widths)
+
+
+def _median(values: np.ndarray):
+    """``np.median`` of a 1-D float array without nan (the middle of the sorted values, or the mean of the two
+    middle ones), without its per-call overhead."""
+    s = np.sort(values)
+    h = len(s) // 2
+    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
 
 
 def place_ends(path: RefinedPath, evidence: np.ndarray, floor: float, half_width_px: float,

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numba import njit
 
 
 @dataclass
@@ -48,15 +49,31 @@ def _lab_ab(bgr_pixels: np.ndarray) -> np.ndarray:
 def _sample(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Mean colour over the 3x3 pixels around each (row, col) point (cheaper than blurring the image)."""
     h, w = image.shape[:2]
-    points = np.asarray(points).reshape(-1, 2)
-    r = np.minimum(np.maximum(np.round(points[:, 0]).astype(np.intp), 1), max(h - 2, 1))
-    c = np.minimum(np.maximum(np.round(points[:, 1]).astype(np.intp), 1), max(w - 2, 1))
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if h < 3 or w < 3:
+        r = np.minimum(np.maximum(np.round(points[:, 0]).astype(np.intp), 1), max(h - 2, 1))
+        c = np.minimum(np.maximum(np.round(points[:, 1]).astype(np.intp), 1), max(w - 2, 1))
         return image[np.minimum(r, h - 1), np.minimum(c, w - 1)].astype(np.float32)
-    flat = image.reshape(-1, image.shape[2])
-    window = np.array([-w - 1, -w, -w + 1, -1, 0, 1, w - 1, w, w + 1], dtype=np.intp)
-    # one gather of the nine neighbours, (9, n, channels); sums of integers (<= 9 * 255) are exact in float32
-    return flat[window[:, None] + (r * w + c)[None, :]].astype(np.float32).sum(axis=0) / 9.0
+    out = np.empty((len(points), image.shape[2]), np.float32)
+    _mean3x3(np.ascontiguousarray(image), points, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _mean3x3(image, points, out):
+    """out[i] = the mean of the 3x3 pixels (per channel) around the pixel nearest to points[i] (rounded half
+    to even, as np.round; clipped one pixel inside the border): the nine integers summed exactly, then one
+    float32 division by 9, as numpy's float32 sum of them does."""
+    h, w, k = image.shape
+    for i in range(points.shape[0]):
+        r = min(max(int(np.rint(points[i, 0])), 1), h - 2)
+        c = min(max(int(np.rint(points[i, 1])), 1), w - 2)
+        for ch in range(k):
+            total = 0
+            for dr in range(-1, 2):
+                for dc in range(-1, 2):
+                    total += image[r + dr, c + dc, ch]
+            out[i, ch] = np.float32(total) / np.float32(9.0)
 
 
 def median0(values: np.ndarray) -> np.ndarray:
@@ -143,8 +160,8 @@ def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
     for k, (dec, (_, (oa, a0, a1), (ob, b0, b1))) in enumerate(zip(decisions, pairs)):
         if dec.over is not None:
             continue
-        if grey is None:
-            grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+        if grey is None:        # uint8: the compiled probes read it as numbers (no float copy of the image)
+            grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY)
         ta = _chord_direction(objects[oa].points[a0:a1 + 1])
         tb = _chord_direction(objects[ob].points[b0:b1 + 1])
         if ta is None or tb is None:
@@ -170,14 +187,152 @@ def _strand_width(width_at, points, width_px):
 
 def _edge_contrasts(grey, centre, directions, wa, wb):
     """(e_a - e_b) / (e_a + e_b) of the occlusion edge strengths of strands a and b (NaN if unknown), for
-    each (t_a, t_b) of ``directions`` (all probes in one gather)."""
-    probes = []
-    for ta, tb in directions:
-        probes += [_occlusion_probes(grey.shape, centre, ta, tb, wa, wb),
-                   _occlusion_probes(grey.shape, centre, tb, ta, wb, wa)]
-    e = _edge_strengths(grey, probes)
+    each (t_a, t_b) of ``directions`` (all probes in one compiled call, :func:`_edge_strength_kernel`)."""
+    n = 2 * len(directions)
+    t_self, t_other = np.empty((n, 2)), np.empty((n, 2))
+    along, across = np.empty(n), np.empty(n)
+    widths = np.empty((n, 2))
+    for k, (ta, tb) in enumerate(directions):
+        for m, (ts, to, ws, wo) in enumerate(((ta, tb, wa, wb), (tb, ta, wb, wa))):
+            ts, to = np.asarray(ts, float), np.asarray(to, float)
+            i = 2 * k + m
+            t_self[i], t_other[i] = ts, to
+            # the dot products as _occlusion_probes takes them (numpy's, bit for bit)
+            along[i], across[i] = float(to @ ts), float(to @ np.array([-ts[1], ts[0]]))
+            widths[i] = ws, wo
+    e = np.empty(n)
+    _edge_strength_kernel(grey, float(centre[0]), float(centre[1]), t_self, along, across, widths, e)
     return [(ea - eb) / (ea + eb) if np.isfinite(ea) and np.isfinite(eb) and ea + eb > 0 else float('nan')
-            for ea, eb in zip(e[0::2], e[1::2])]
+            for ea, eb in zip(e[0::2].tolist(), e[1::2].tolist())]
+
+
+@njit(cache=True, nogil=True)
+def _block_sum(a, lo, n):
+    """numpy's pairwise sum of ``a[lo:lo + n]`` for n <= 128: sequential below 8, else eight running sums."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r = a[lo:lo + 8].copy()
+    i = 8
+    while i < n - (n % 8):
+        for j in range(8):
+            r[j] += a[lo + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_sum(a, lo, n):
+    """``np.add.reduce`` of ``a[lo:lo + n]`` in numpy's order (pairwise: blocks of up to 128 summed by
+    :func:`_block_sum`, halves (a multiple of 8 first) above that), so that a compiled mean equals numpy's bit
+    for bit. The halving is unrolled with an explicit stack: numba's cache cannot reload recursive functions."""
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    task_lo = np.empty(128, np.int64)
+    task_n = np.empty(128, np.int64)
+    task_combine = np.zeros(128, np.bool_)
+    values = np.empty(128)
+    n_tasks, n_values = 1, 0
+    task_lo[0], task_n[0] = lo, n
+    while n_tasks:
+        n_tasks -= 1
+        t_lo, t_n, combine = task_lo[n_tasks], task_n[n_tasks], task_combine[n_tasks]
+        if combine:                              # both halves done: left + right
+            n_values -= 1
+            values[n_values - 1] = values[n_values - 1] + values[n_values]
+        elif t_n <= 128:
+            values[n_values] = _block_sum(a, t_lo, t_n)
+            n_values += 1
+        else:
+            n2 = t_n // 2
+            n2 -= n2 % 8
+            # popped in reverse: the left half first, then the right half, then their sum
+            task_lo[n_tasks], task_n[n_tasks], task_combine[n_tasks] = t_lo, t_n, True
+            task_lo[n_tasks + 1], task_n[n_tasks + 1], task_combine[n_tasks + 1] = t_lo + n2, t_n - n2, False
+            task_lo[n_tasks + 2], task_n[n_tasks + 2], task_combine[n_tasks + 2] = t_lo, n2, False
+            n_tasks += 3
+    return values[0]
+
+
+@njit(cache=True, nogil=True)
+def _edge_strength_kernel(grey, centre_r, centre_c, t_self, along, across, widths, out):
+    """:func:`occlusion_edge_strength` for each row i of ``t_self`` (with ``along``, ``across``: the other
+    strand's direction in the frame (t_self, n), ``widths[i]``: (own, other) width), into ``out[i]``;
+    the same points, bilinear samples and arithmetic (in numpy's order) as :func:`_occlusion_probes` and
+    :func:`_edge_strengths`, without building the probe arrays."""
+    h, w = grey.shape
+    for i in range(t_self.shape[0]):
+        out[i] = np.nan
+        tr, tc = t_self[i, 0], t_self[i, 1]
+        nr, nc = -tc, tr
+        sin = abs(across[i])
+        if sin < 0.2:
+            continue
+        width, other = widths[i, 0], widths[i, 1]
+        half = 0.5 * other / sin
+        n_u = max(3, int(np.ceil(1.4 * half)) + 1)
+        start, stop = -0.7 * half, 0.7 * half
+        step = (stop - start) / (n_u - 1)
+        u = np.empty(n_u)
+        for j in range(n_u):
+            u[j] = j * step + start
+        u[n_u - 1] = stop
+        lo = np.floor(max(1.0, 0.25 * width - 1.0))
+        n_off = int(np.ceil(np.ceil(0.75 * width + 1.0) + 1.0 - lo))
+        # every probe point first: the set is void if any runs off the image
+        vals = np.empty((2, n_off, 2, n_u))          # (side, offset, +- 0.75 n, u)
+        ok = True
+        for side in range(2):
+            for j in range(n_off):
+                o = lo + j if side == 0 else -(lo + j)
+                u_o = o * along[i] / across[i]
+                base_r = centre_r + o * nr
+                base_c = centre_c + o * nc
+                for m in range(2):
+                    sr = 0.75 * nr
+                    sc = 0.75 * nc
+                    for k in range(n_u):
+                        s = u_o + u[k]
+                        pr = base_r + s * tr
+                        pc = base_c + s * tc
+                        if m == 0:
+                            pr, pc = pr + sr, pc + sc
+                        else:
+                            pr, pc = pr - sr, pc - sc
+                        if pr < 0 or pc < 0 or pr > h - 1 or pc > w - 1:
+                            ok = False
+                            break
+                        r0 = min(max(int(np.floor(pr)), 0), h - 2)
+                        c0 = min(max(int(np.floor(pc)), 0), w - 2)
+                        fr, fc = pr - r0, pc - c0
+                        vals[side, j, m, k] = ((1 - fr) * (1 - fc) * np.float64(grey[r0, c0])
+                                               + (1 - fr) * fc * np.float64(grey[r0, c0 + 1])
+                                               + fr * (1 - fc) * np.float64(grey[r0 + 1, c0])
+                                               + fr * fc * np.float64(grey[r0 + 1, c0 + 1]))
+                    if not ok:
+                        break
+                if not ok:
+                    break
+            if not ok:
+                break
+        if not ok:
+            continue
+        total = 0.0
+        deriv = np.empty(n_u)
+        for side in range(2):
+            strongest = -np.inf
+            for j in range(n_off):
+                for k in range(n_u):
+                    deriv[k] = abs(vals[side, j, 0, k] - vals[side, j, 1, k]) / 1.5
+                strongest = max(strongest, _pairwise_sum(deriv, 0, n_u) / n_u)
+            total = strongest if side == 0 else total + strongest
+        out[i] = total
 
 
 def _rotate(t, angle_rad):

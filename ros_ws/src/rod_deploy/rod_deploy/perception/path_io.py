@@ -71,23 +71,56 @@ def write_pattern_file(path, points_xy: np.ndarray, z_m: float = 0.0):
 
 
 def read_pattern_file(path) -> np.ndarray:
-    """(n, 3) points [m] of a pattern text file (z = 0 where a line gives only x y)."""
+    """(n, 3) points [m] of a pattern text file (z = 0 where a line gives only x y); see
+    :func:`read_pattern_file_lines`."""
+    return read_pattern_file_lines(path)[0]
+
+
+#: names a header line may give its columns (skipped when it is the first line that is not a comment)
+_HEADER_NAMES = {'x', 'y', 'z', 'x_m', 'y_m', 'z_m', 'x[m]', 'y[m]', 'z[m]'}
+
+
+def read_pattern_file_lines(path):
+    """((n, 3) points [m], (n,) line numbers from 1) of a pattern text file.
+
+    One point per line, ``x y`` or ``x y z``, separated by spaces, tabs or commas (``0.1, 0.2``); ``#`` comments,
+    blank lines, a UTF-8 byte-order mark and one header line naming the columns (``x,y`` or ``x y z``) before the
+    first point are skipped. Refused with the line named, where the numbers would have to be guessed: a line that
+    mixes commas and spaces between its numbers (``0,15 0``: decimal commas?), semicolons, words, or other than two
+    or three values. An empty file gives a (0, 3) array."""
     path = Path(path)
-    pts = []
-    for i, line in enumerate(path.read_text().splitlines(), start=1):
-        line = line.split('#', 1)[0].replace(',', ' ').strip()
+    pts, line_numbers = [], []
+    for i, raw in enumerate(path.read_text(encoding='utf-8-sig').splitlines(), start=1):
+        line = raw.split('#', 1)[0].strip()
         if not line:
             continue
-        try:
-            vals = [float(v) for v in line.split()]
-        except ValueError:
-            raise PathFileError(f'{path}, line {i}: not a number') from None
+        shown = line if len(line) <= 60 else line[:57] + '...'
+        if ';' in line:
+            raise PathFileError(f'{path}, line {i}: "{shown}": semicolons are not separators here; write x y [z] '
+                                f'in metres separated by spaces or commas, with "." as the decimal point')
+        if ',' in line:
+            fields = [f.strip() for f in line.split(',')]
+            if fields[-1] == '':                       # one trailing comma
+                fields = fields[:-1]
+            if any(len(f.split()) > 1 for f in fields):
+                raise PathFileError(f'{path}, line {i}: "{shown}" mixes commas and spaces between numbers '
+                                    f'(decimal commas?); write x y [z] separated by spaces or by commas, with "." as '
+                                    f'the decimal point')
+        else:
+            fields = line.split()
+        if not pts and all(f.lower() in _HEADER_NAMES for f in fields):
+            continue                                    # a header line naming the columns
+        vals = []
+        for f in fields:
+            try:
+                vals.append(float(f))
+            except ValueError:
+                raise PathFileError(f'{path}, line {i}: "{f}" is not a number (expected x y [z] in metres)') from None
         if len(vals) not in (2, 3):
-            raise PathFileError(f'{path}, line {i}: expected "x y" or "x y z", got {len(vals)} values')
+            raise PathFileError(f'{path}, line {i}: expected "x y" or "x y z", got {len(vals)} values ("{shown}")')
         pts.append(vals + [0.0] * (3 - len(vals)))
-    if len(pts) < 2:
-        raise PathFileError(f'{path}: a pattern needs at least two points')
-    return np.array(pts)
+        line_numbers.append(i)
+    return np.array(pts, float).reshape(-1, 3), np.array(line_numbers, int)
 
 
 def deployed_order(points_xy: np.ndarray, closed: bool, start_near=None) -> np.ndarray:

@@ -29,8 +29,9 @@ sub-pixel refinement.
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
-    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), arc-length resampling
-    every ``step_px``.
+    or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), a small self loop whose
+    hole the mask closes re-traced round its blob (:func:`~.filled_loops.trace_filled_loop`), arc-length
+    resampling every ``step_px``.
 
 Objects are numbered by decreasing length. An open path starts at its end with the smaller column
 (leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in
@@ -44,10 +45,12 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
+from numba import njit
 
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
 from rod_deploy.perception.crossing_order import colour_sampler, decide_crossings
+from rod_deploy.perception.filled_loops import trace_filled_loop
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
                                                 estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
@@ -146,7 +149,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     mask, f = skeleton_mask(seg, config)
     graph = build_skeleton_graph(skeleton_of(mask))
-    skel_dist = cv2.distanceTransform(mask.view(np.uint8), cv2.DIST_L2, 3)
+    skel_dist = distance_map(mask)
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
     ws = w / f
     t2 = time.perf_counter()
@@ -193,7 +196,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1), lazily
         if dist[0] is None:
-            dist[0] = cv2.distanceTransform(seg.mask.view(np.uint8), cv2.DIST_L2, 3)
+            dist[0] = distance_map(seg.mask)
         return _lookup(dist[0], p)
 
     if len(traced) > 1:
@@ -217,6 +220,11 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
                                                   config.min_colour_separation)
+            if not obj.closed:
+                half_width_at(obj.points[:1])                  # the full-resolution distance map, once
+                refined.points = trace_filled_loop(refined.points, dist[0],
+                                                   [o.points for o in traced if o is not obj],
+                                                   [obj.points[i0:i1 + 1] for _, i0, i1 in obj.passes])
         else:
             pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
             width = w
@@ -275,6 +283,20 @@ def skeleton_mask(seg: Segmentation, config: PerceptionConfig = PerceptionConfig
     return half, 2
 
 
+def distance_map(mask: np.ndarray) -> np.ndarray:
+    """``cv2.distanceTransform(mask, DIST_L2, 3)`` of a bool mask, computed on the rows of its bounding box
+    and one background row either side (or the image border): every chamfer path from inside to the
+    background outside crosses such a row, so the values are the same, bit for bit (checked on random masks
+    in the tests; a crop of the columns is not: OpenCV's vectorised passes round differently there)."""
+    out = np.zeros(mask.shape, np.float32)
+    _, r, w, h = cv2.boundingRect(mask.view(np.uint8))
+    if w == 0 or h == 0:
+        return out
+    r0, r1 = max(r - 1, 0), min(r + h + 1, mask.shape[0])
+    out[r0:r1] = cv2.distanceTransform(mask[r0:r1].view(np.uint8), cv2.DIST_L2, 3)
+    return out
+
+
 def _centreline_width(graph, dist, f, w, mismatch):
     """The stroke width: the segmentation's 2 area / perimeter ``w``, unless the skeleton's chains longer
     than 6 w, pooled, sit in a mask more than ``mismatch`` times wider (median of 2 d - 1 on them, d the distance to the
@@ -287,14 +309,34 @@ def _centreline_width(graph, dist, f, w, mismatch):
 
 
 def _lookup(image, points):
-    """``image`` at the pixels nearest to (row, col) ``points`` (clipped to the image)."""
-    p = np.round(points).astype(int)
-    return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
-                 np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    """``image`` at the pixels nearest to (row, col) ``points`` (rounded half to even, as np.round; clipped
+    to the image), compiled for float point arrays."""
+    points = np.asarray(points)
+    if points.dtype != np.float64 or points.ndim != 2 or image.ndim != 2:
+        p = np.round(points).astype(int)
+        return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
+                     np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    out = np.empty(len(points), image.dtype)
+    _lookup_kernel(image.view(np.uint8) if image.dtype == bool else image, points,
+                   out.view(np.uint8) if image.dtype == bool else out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _lookup_kernel(image, points, out):
+    h, w = image.shape
+    for i in range(points.shape[0]):
+        out[i] = image[min(max(int(np.rint(points[i, 0])), 0), h - 1), min(max(int(np.rint(points[i, 1])), 0), w - 1)]
 
 
 def _median_evidence(evidence, points):
-    return float(np.median(_lookup(evidence, points)))
+    """``np.median`` of the (uint8) evidence at ``points``: the middle value, or the mean of the two middle
+    ones in float64, without np.median's per-call overhead."""
+    v = np.sort(_lookup(evidence, points))
+    if not len(v):
+        return float('nan')
+    h = len(v) // 2
+    return float(v[h]) if len(v) % 2 else (float(v[h - 1]) + float(v[h])) / 2
 
 
 def _crossing_zones(crossings, w):

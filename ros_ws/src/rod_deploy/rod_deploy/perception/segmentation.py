@@ -114,10 +114,9 @@ def foreground_evidence(bgr: np.ndarray, background, method: str) -> np.ndarray:
     if isinstance(background, np.ndarray):
         _channel_max_difference(bgr, np.ascontiguousarray(background, dtype=np.uint8), polarity, s)
         return s
-    # one colour: per channel, a 256-entry table of the difference from it
-    grey = np.arange(256)[:, None] - np.array([round(v) for v in background])[None, :]
-    table = np.abs(grey) if polarity == 0 else np.maximum(-grey if polarity == 1 else grey, 0)
-    _channel_max_table(bgr, np.ascontiguousarray(table, dtype=np.uint8), s)
+    # one colour (rounded to integers): the same differences from it, in integer arithmetic on the flat pixels
+    colour = [int(round(v)) for v in background]
+    _channel_max_from_colour(bgr.reshape(-1), colour[0], colour[1], colour[2], polarity, s.reshape(-1))
     return s
 
 
@@ -141,13 +140,20 @@ def _channel_max_difference(bgr, background, polarity, out):
 
 
 @njit(cache=True, nogil=True)
-def _channel_max_table(bgr, table, out):
-    """out = max over the channels k of table[I_k, k], in one pass."""
-    n = out.size
-    pixels = bgr.reshape(n, 3)
-    evidence = out.reshape(n)
-    for i in range(n):
-        evidence[i] = max(table[pixels[i, 0], 0], table[pixels[i, 1], 1], table[pixels[i, 2], 2])
+def _channel_max_from_colour(pixels, c_b, c_g, c_r, polarity, out):
+    """out[i] = max over the channels of |I - c| (polarity 0), c - I (1) or I - c (2), clipped at 0, for the
+    flat BGR ``pixels`` and one background colour c: integer arithmetic only (no table look-ups)."""
+    for i in range(out.size):
+        best = 0
+        for k in range(3):
+            c = c_b if k == 0 else (c_g if k == 1 else c_r)
+            d = np.int32(pixels[3 * i + k]) - np.int32(c)
+            if polarity == 0:
+                d = abs(d)
+            elif polarity == 1:
+                d = -d
+            best = max(best, d)
+        out[i] = best
 
 
 def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()) -> Segmentation:
@@ -157,7 +163,7 @@ def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()
     s = foreground_evidence(bgr, background, config.method)
     # histogram statistics from every other row and column (4x fewer pixels), unless that leaves few
     # object pixels (thin strokes)
-    sub = np.ascontiguousarray(s[::2, ::2]) if min(s.shape) >= 64 else s
+    sub = s[::2, ::2] if min(s.shape) >= 64 else s
     t_otsu, n_fg, mean_fg, mean_bg = _histogram_split(sub, config.threshold)
     if sub is not s and n_fg < 500:
         sub = s
@@ -199,7 +205,8 @@ def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()
 def _histogram_split(s: np.ndarray, threshold):
     """(threshold T, pixels above T, their mean, mean of the rest) of an evidence image; T by Otsu
     unless given."""
-    hist = cv2.calcHist([s], [0], None, [256], [0, 256]).ravel().astype(np.float64)
+    hist = np.zeros(256, np.float64)
+    _count_levels(s, hist)
     t = _otsu(hist) if threshold is None else float(threshold)
     levels = np.arange(256)
     above = levels > t
@@ -207,6 +214,28 @@ def _histogram_split(s: np.ndarray, threshold):
     mean_fg = float((hist * levels)[above].sum() / max(n_fg, 1))
     mean_bg = float((hist * levels)[~above].sum() / max(s.size - n_fg, 1))
     return t, n_fg, mean_fg, mean_bg
+
+
+@njit(cache=True, nogil=True)
+def _count_levels(s, hist):
+    """hist[v] += the number of pixels of the uint8 image (or strided view) ``s`` at level v (four interleaved
+    integer counts: most pixels share one level, and one counter would make every update wait for the last)."""
+    counts = np.zeros((4, 256), np.int64)
+    for i in range(s.shape[0]):
+        row = s[i]
+        n = row.size
+        j = 0
+        while j + 4 <= n:
+            counts[0, row[j]] += 1
+            counts[1, row[j + 1]] += 1
+            counts[2, row[j + 2]] += 1
+            counts[3, row[j + 3]] += 1
+            j += 4
+        while j < n:
+            counts[0, row[j]] += 1
+            j += 1
+    for v in range(256):
+        hist[v] += counts[0, v] + counts[1, v] + counts[2, v] + counts[3, v]
 
 
 def _otsu(hist: np.ndarray) -> float:

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 from numba import njit
 
+from rod_deploy.perception.centreline import path_length
 from rod_deploy.perception.thinning import zhang_suen_thinning
 
 END = 'end'
@@ -49,7 +51,7 @@ class Edge:
     def length_px(self) -> float:
         """Arc length [px] (cached: an edge's points never change)."""
         if self._length is None:
-            self._length = 0.0 if len(self.points) < 2 else float(np.sum(np.hypot(*np.diff(self.points, axis=0).T)))
+            self._length = path_length(self.points)
         return self._length
 
     _length: float | None = field(default=None, repr=False, compare=False)
@@ -102,11 +104,12 @@ def skeleton_of(mask: np.ndarray) -> np.ndarray:
     mask's bounding box."""
     mask = np.asarray(mask, dtype=bool)
     out = np.zeros(mask.shape, dtype=bool)
-    rows = np.flatnonzero(mask.any(axis=1))
-    if rows.size == 0:
+    if not mask.size:
         return out
-    cols = np.flatnonzero(mask.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    c0, r0, w, h = cv2.boundingRect(mask.view(np.uint8))        # the object pixels' bounding box
+    if w == 0 or h == 0:
+        return out
+    r1, c1 = r0 + h, c0 + w
     out[r0:r1, c0:c1] = zhang_suen_thinning(mask[r0:r1, c0:c1])
     return out
 
@@ -124,15 +127,10 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     n = rows.size
     if n == 0:
         return graph
-    # neighbours: pixel numbers looked up in a padded index image of the skeleton's bounding box
-    r0, c0 = int(rows[0]), int(cols.min())
-    r, c = rows - (r0 - 1), cols - (c0 - 1)
-    index = np.full((int(r[-1]) + 2, int(c.max()) + 2), -1, dtype=np.int32)
-    index[r, c] = np.arange(n)
-    nb = np.stack([index[r + dr, c + dc] for dr, dc in _OFFSETS], axis=1)
+    # neighbours (pixel numbers, -1: none), compiled: a padded index image of the skeleton's bounding box
+    nb = _neighbour_table(rows, cols, _OFFSETS)
     valid = nb >= 0
-    count = valid.sum(axis=1)
-    junction = count >= 3
+    junction = valid.sum(axis=1) >= 3
 
     # junction pixels -> junction nodes (8-connected clusters, numbered in pixel order)
     jl = np.full(n, -1, dtype=np.int64)
@@ -151,27 +149,68 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
         for k in range(n_nodes):
             graph.nodes.append(Node(JUNCTION, np.array([mr[k], mc[k]])))
 
+    # per pixel: its two largest chain (non-junction) neighbours (-1: none), their count, and the largest and
+    # smallest label of an adjacent junction node (-1 / int64 max: none)
+    first, second, n_nb, touch, touch2 = _chain_links(nb, junction, jl)
     chain = ~junction
-    nb_j = np.where(valid, junction[np.maximum(nb, 0)], False)
-    nb_chain = np.where(valid & ~nb_j, nb, -1)
-    nb_sorted = np.sort(nb_chain, axis=1)[:, ::-1]                # valid indices first
-    n_nb = (nb_chain >= 0).sum(axis=1)
-    touched = np.where(nb_j, jl[np.maximum(nb, 0)], -1)
-    touch = touched.max(axis=1)                                    # an adjacent junction node (-1: none)
-    touch2 = np.where(touched >= 0, touched, np.iinfo(np.int64).max).min(axis=1)
-
-    first, second = (np.ascontiguousarray(nb_sorted[:, k]) for k in (0, 1))
     order, bounds, closed = _walk_chains(first, second, np.flatnonzero(chain & (n_nb <= 1)), ~chain)
+    points = np.stack([rows, cols], axis=1).astype(np.float64)
     for k in range(len(closed)):
         chain_order = order[bounds[k]:bounds[k + 1]]
         if not closed[k]:
-            _add_chain(graph, chain_order, rows, cols, touch, touch2)
+            _add_chain(graph, chain_order, points, touch, touch2)
             continue
-        pts = np.stack([rows[chain_order], cols[chain_order]], axis=1).astype(np.float64)
+        pts = points[chain_order]
         if len(chain_order) > 2:
-            pts = np.vstack([pts, pts[:1]])
+            pts = np.concatenate([pts, pts[:1]])
         graph.add_edge(pts, -1, -1)
     return graph
+
+
+@njit(cache=True, nogil=True)
+def _neighbour_table(rows, cols, offsets):
+    """(n, 8) pixel numbers of the 8-neighbours (``offsets`` order) of the skeleton pixels (``rows``, ``cols``
+    in row-major order), -1 where there is none."""
+    n = rows.size
+    r0, c0 = rows[0] - 1, cols.min() - 1
+    index = np.full((rows[n - 1] - r0 + 2, cols.max() - c0 + 2), -1, dtype=np.int64)
+    for i in range(n):
+        index[rows[i] - r0, cols[i] - c0] = i
+    nb = np.empty((n, 8), dtype=np.int64)
+    for i in range(n):
+        r, c = rows[i] - r0, cols[i] - c0
+        for k in range(8):
+            nb[i, k] = index[r + offsets[k, 0], c + offsets[k, 1]]
+    return nb
+
+
+@njit(cache=True, nogil=True)
+def _chain_links(nb, junction, jl):
+    """For each pixel: the largest and second largest number of a non-junction neighbour (-1: none), how many
+    there are, and the largest and smallest junction node label among its neighbours (-1 and int64 max if
+    none)."""
+    n = nb.shape[0]
+    first = np.full(n, -1, dtype=np.int64)
+    second = np.full(n, -1, dtype=np.int64)
+    n_nb = np.zeros(n, dtype=np.int64)
+    touch = np.full(n, -1, dtype=np.int64)
+    touch2 = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+    for i in range(n):
+        for k in range(8):
+            q = nb[i, k]
+            if q < 0:
+                continue
+            if junction[q]:
+                touch[i] = max(touch[i], jl[q])
+                touch2[i] = min(touch2[i], jl[q])
+            else:
+                n_nb[i] += 1
+                if q > first[i]:
+                    second[i] = first[i]
+                    first[i] = q
+                elif q > second[i]:
+                    second[i] = q
+    return first, second, n_nb, touch, touch2
 
 
 def _cluster(n: int, a: list, b: list):
@@ -231,13 +270,14 @@ def _walk_chains(first, second, ends, visited):
     return order[:m], np.array(bounds), np.array(closed)
 
 
-def _add_chain(graph, order, rows, cols, touch, touch2):
-    """Add one open chain as an edge, creating end nodes where it touches no junction."""
+def _add_chain(graph, order, points, touch, touch2):
+    """Add one open chain (pixel numbers ``order``; ``points``: (row, col) of every pixel) as an edge, creating
+    end nodes where it touches no junction."""
     a, b = order[0], order[-1]
     ja, jb = int(touch[a]), int(touch[b])
     if a == b and touch2[a] != np.iinfo(np.int64).max and touch2[a] != ja:
         jb = int(touch2[a])                                  # one-pixel bridge between two junctions
-    pts = np.stack([rows[order], cols[order]], axis=1).astype(np.float64)
+    pts = points[order]
     ends = []
     for j, at in ((ja, 0), (jb, -1)):
         if j >= 0:
@@ -253,7 +293,7 @@ def _add_chain(graph, order, rows, cols, touch, touch2):
     parts.append(pts)
     if vpos is not None:
         parts.append(vpos[None])
-    graph.add_edge(np.vstack(parts), u, v)
+    graph.add_edge(np.concatenate(parts) if len(parts) > 1 else pts, u, v)
 
 
 def remove_node_if_isolated(graph: SkeletonGraph, node_id: int):

@@ -94,7 +94,7 @@ def zhang_suen_thinning(mask: np.ndarray) -> np.ndarray:
     if mask.ndim != 2:
         raise ValueError(f'thinning needs a 2-D mask, got shape {mask.shape}')
     padded = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), dtype=np.uint8)
-    padded[1:-1, 1:-1] = mask != 0
+    padded[1:-1, 1:-1] = mask if mask.dtype == bool else mask != 0     # (bool: no temporary)
     # the object pixels with a background 8-neighbour: those that a 3 x 3 erosion removes
     eroded = cv2.erode(padded, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0)
     boundary = np.flatnonzero(padded > eroded)

@@ -14,8 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
+from rod_deploy.perception.centreline import path_length
 from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
@@ -28,9 +30,7 @@ class TracedObject:
     passes: list = field(default_factory=list)
 
     def length_px(self) -> float:
-        if len(self.points) < 2:
-            return 0.0
-        return float(np.sum(np.hypot(*np.diff(self.points, axis=0).T)))
+        return path_length(self.points)
 
 
 def hermite_connector(p0, t0, p1, t1, step_px: float = 1.0) -> np.ndarray:
@@ -39,12 +39,32 @@ def hermite_connector(p0, t0, p1, t1, step_px: float = 1.0) -> np.ndarray:
     p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
     d = float(np.linalg.norm(p1 - p0))
     n = max(2, int(np.ceil(d / step_px)) + 1)
+    t0, t1 = np.asarray(t0, float), np.asarray(t1, float)
     s = np.linspace(0.0, 1.0, n)[:, None]
+    if p0.shape == p1.shape == t0.shape == t1.shape == (2,):
+        # numpy's s ** 3 (its vectorised pow is not libm's), the rest compiled
+        return _hermite(s[:, 0], (s ** 3)[:, 0], p0, d * t0, p1, d * t1)
     h00 = 2 * s ** 3 - 3 * s ** 2 + 1
     h10 = s ** 3 - 2 * s ** 2 + s
     h01 = -2 * s ** 3 + 3 * s ** 2
     h11 = s ** 3 - s ** 2
-    return h00 * p0 + h10 * (d * np.asarray(t0)) + h01 * p1 + h11 * (d * np.asarray(t1))
+    return h00 * p0 + h10 * (d * t0) + h01 * p1 + h11 * (d * t1)
+
+
+@njit(cache=True, nogil=True)
+def _hermite(s, s3, p0, m0, p1, m1):
+    """h00 p0 + h10 m0 + h01 p1 + h11 m1 at the parameters ``s`` (``s3`` = s ** 3), in numpy's order: the
+    basis as 2 s3 - 3 s^2 + 1, s3 - 2 s^2 + s, -2 s3 + 3 s^2, s3 - s^2 (s^2 = s s), sums left to right."""
+    out = np.empty((s.size, 2))
+    for k in range(s.size):
+        s2 = s[k] * s[k]
+        h00 = 2 * s3[k] - 3 * s2 + 1
+        h10 = s3[k] - 2 * s2 + s[k]
+        h01 = -2 * s3[k] + 3 * s2
+        h11 = s3[k] - s2
+        for c in range(2):
+            out[k, c] = h00 * p0[c] + h10 * m0[c] + h01 * p1[c] + h11 * m1[c]
+    return out
 
 
 def trace_objects(graph: SkeletonGraph, crossings: list) -> list:

@@ -19,6 +19,11 @@ from .scaling import RodScales
 _KNOWN = {'length', 'radius', 'L_gb', 'loop_height', 'youngs_modulus', 'density', 'friction', 'g', 'name',
           'natural_curvature'}
 _SIGNED = {'natural_curvature'}
+#: the contract's three ways to give the rod's stiffness; exactly one of them
+_STIFFNESS_FORMS = ('L_gb', 'loop_height', 'youngs_modulus')
+#: longest rod accepted [m]: the whole rod hangs from the gripper at the start; a longer one means the file's values
+#: are not in metres (the contract's unit)
+MAX_LENGTH_M = 20.0
 
 
 class RodDescriptionError(ValueError):
@@ -76,6 +81,8 @@ def rod_description_from_dict(d, source='rod description'):
         if d.get(key) is None:
             continue
         try:
+            if isinstance(d[key], bool):        # YAML's yes / no / true / false are no lengths or coefficients
+                raise TypeError
             v = float(d[key])
         except (TypeError, ValueError):
             raise RodDescriptionError(f'{source}: "{key}" must be a number, got {d[key]!r}') from None
@@ -86,6 +93,15 @@ def rod_description_from_dict(d, source='rod description'):
             raise RodDescriptionError(f'{source}: "{key}" must be {"non-negative" if key == "friction" else "positive"}'
                                       f' and finite, got {d[key]!r}')
         values[key] = v
+    forms = [k for k in _STIFFNESS_FORMS if k in values]
+    if len(forms) > 1:
+        raise RodDescriptionError(f'{source}: gives both {forms[0]} and {forms[1]}; give exactly one of L_gb, '
+                                  f'loop_height, or youngs_modulus with density')
+    if 'youngs_modulus' in values and 'density' not in values:
+        raise RodDescriptionError(f'{source}: youngs_modulus needs density [kg/m^3] (or give L_gb or loop_height)')
+    if values['length'] > MAX_LENGTH_M:
+        raise RodDescriptionError(f'{source}: length {values["length"]:g} m is longer than {MAX_LENGTH_M:g} m: '
+                                  f'the rod file\'s values must be in metres')
     try:
         scales = RodScales.from_description(values['radius'], L_gb=values.get('L_gb'),
                                             loop_height=values.get('loop_height'),
@@ -93,6 +109,10 @@ def rod_description_from_dict(d, source='rod description'):
                                             density=values.get('density'), g=values.get('g', 9.81))
     except ValueError as e:
         raise RodDescriptionError(f'{source}: {e}') from None
+    if values['radius'] >= scales.gravito_bending_length_m:
+        raise RodDescriptionError(f'{source}: radius {values["radius"]:g} m is not smaller than L_gb '
+                                  f'({scales.gravito_bending_length_m:.4g} m): no slender rod (the rod file\'s values '
+                                  f'must be in metres)')
     if values['length'] <= 2.0 * scales.gravito_bending_length_m:
         raise RodDescriptionError(f'{source}: length {values["length"]} m is not longer than 2 L_gb '
                                   f'({2 * scales.gravito_bending_length_m:.4g} m): nothing left to deploy')
@@ -103,13 +123,32 @@ def rod_description_from_dict(d, source='rod description'):
                           natural_curvature_per_m=values.get('natural_curvature', 0.0))
 
 
+class _DuplicateKey(yaml.YAMLError):
+    pass
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """A safe loader that refuses a key given twice (PyYAML would keep the last one silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise _DuplicateKey(f'"{key}" is given twice (line {key_node.start_mark.line + 1})')
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
 def load_rod_description(path):
     """Read and validate a rod description YAML file."""
     try:
         with open(path) as f:
-            d = yaml.safe_load(f)
+            d = yaml.load(f, Loader=_UniqueKeyLoader)
     except OSError as e:
         raise RodDescriptionError(f'cannot read rod description {path}: {e.strerror}') from None
-    except yaml.YAMLError as e:
-        raise RodDescriptionError(f'rod description {path} is not valid YAML: {e}') from None
+    except _DuplicateKey as e:
+        raise RodDescriptionError(f'{path}: {e}') from None
+    except yaml.YAMLError as e:                       # one line: PyYAML's message spans several
+        raise RodDescriptionError(f'rod description {path} is not valid YAML: {" ".join(str(e).split())}') from None
     return rod_description_from_dict(d, source=str(path))

@@ -91,6 +91,9 @@ class ProcessedPattern:
     xy: np.ndarray         # (m, 2) points [m]
     tangent: np.ndarray    # (m, 2) unit tangents
     kappa: np.ndarray      # (m,) signed curvature [1/m], > 0 turning left
+    #: the sharpest bend between the nodes too: (|turning angle| / arc length over one step [1/m], where (x, y) [m]);
+    #: a bend shorter than a step (a cusp the spline rounds within a millimetre) can fall between two nodes
+    peak_bend: tuple | None = None
 
     @property
     def length(self):
@@ -109,10 +112,25 @@ class PlannedTrajectory:
     first_grasp_index: int        # row of the first pattern node (rows before it: hanging pose and lead-in)
     method: str
     timings_s: dict = field(default_factory=dict)
+    #: the processed pattern before the friction-limited start replaced its beginning (``pattern`` when unchanged)
+    pattern_as_given: ProcessedPattern | None = None
 
     @property
     def rotation(self):
         return Rotation.from_quat(self.quaternion)
+
+    def start_replacement(self, tol_m=1e-4):
+        """(length [m] of the pattern's start that the planned curve replaces, the largest distance [m] of the
+        planned curve from the pattern there); (0, 0) when the pattern is planned as given."""
+        given = self.pattern_as_given
+        if given is None or given is self.pattern:
+            return 0.0, 0.0
+        moved = np.flatnonzero(np.linalg.norm(self.pattern.xy - given.xy, axis=1) > tol_m)
+        if moved.size == 0:
+            return 0.0, 0.0
+        k = int(moved[-1]) + 1
+        d = np.linalg.norm(self.pattern.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
+        return float(given.s[min(k, len(given.s) - 1)]), float(d.max())
 
 
 def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
@@ -152,7 +170,22 @@ def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_
                            f'on itself, which a rod cannot follow')
     tangent = d1 / speed[:, None]
     kappa = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / speed ** 3
-    return ProcessedPattern(s=s, xy=p, tangent=tangent, kappa=kappa)
+    return ProcessedPattern(s=s, xy=p, tangent=tangent, kappa=kappa,
+                            peak_bend=_peak_bend(dense, np.stack(splev(u, tck, der=1), axis=1), s_dense, step_m))
+
+
+def _peak_bend(dense, d1, s_dense, window_m):
+    """(largest |turning angle| / arc length over windows of ``window_m`` along the dense spline [1/m], its place)."""
+    theta = np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+    j = np.searchsorted(s_dense, s_dense + window_m)
+    i = np.flatnonzero(j < len(s_dense))
+    if i.size == 0:
+        return None
+    j = j[i]
+    bend = np.abs(theta[j] - theta[i]) / (s_dense[j] - s_dense[i])
+    k = int(np.argmax(bend))
+    mid = int(np.argmax(np.abs(np.diff(theta[i[k]:j[k] + 1])))) + i[k]      # where the window turns most
+    return float(bend[k]), dense[mid].copy()
 
 
 def local_frames(tangent):
@@ -176,7 +209,8 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
             f'the pattern ({pattern.length:.3f} m) is longer than the rod allows: at node {i} '
             f'({pattern.xy[i, 0]:.4f}, {pattern.xy[i, 1]:.4f}) m only {L - pattern.s[i]:.4f} m of the {L:g} m rod '
             f'would remain suspended (at least {settings.min_ls_bar:g} L_gb = {settings.min_ls_bar * Lgb:.4f} m); '
-            f'patterns up to {L - settings.min_ls_bar * Lgb:.3f} m fit this rod')
+            f'patterns up to {L - settings.min_ls_bar * Lgb:.3f} m fit this rod'
+            + (' (a pattern file\'s values must be in metres)' if pattern.length > 20.0 else ''))
     kappa_bar = -pattern.kappa * Lgb                                   # the released sign
     sharp = np.flatnonzero(np.abs(kappa_bar) > settings.max_abs_kappa_bar)
     if sharp.size:
@@ -186,6 +220,13 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
             f'{pattern.xy[i, 1]:.4f}) m: radius {1 / abs(pattern.kappa[i]):.4f} m, |kappa_bar| = '
             f'{abs(kappa_bar[i]):.3g} > {settings.max_abs_kappa_bar:g} (smallest radius the rod can follow: '
             f'{Lgb / settings.max_abs_kappa_bar:.4f} m); smooth the pattern (--smoothing) or use a stiffer rod')
+    if pattern.peak_bend is not None and pattern.peak_bend[0] * Lgb > settings.max_abs_kappa_bar:
+        bend, (x, y) = pattern.peak_bend
+        raise PlanningError(
+            f'the pattern bends too sharply for this rod at ({x:.4f}, {y:.4f}) m, between two nodes: it turns by '
+            f'{np.degrees(bend * settings.step_m):.0f} degrees within {1000 * settings.step_m:g} mm (|kappa_bar| = '
+            f'{bend * Lgb:.3g} > {settings.max_abs_kappa_bar:g}, a corner or cusp; smallest radius the rod can follow: '
+            f'{Lgb / settings.max_abs_kappa_bar:.4f} m); round it off in the drawing or use a stiffer rod')
     return np.column_stack([ls_bar, np.full_like(ls_bar, rod.ks_bar), kappa_bar])
 
 
@@ -214,9 +255,12 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     settings = settings or PlannerSettings()
     settings.validate()
     t0 = time.perf_counter()
-    pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
+    pattern = given = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
     if settings.start == 'achievable' and settings.method != 'intuitive':
         from .achievable_start import achievable_start
+        # the pattern as drawn is checked first, so that an error names a point of it (the replaced start of a
+        # pattern that bends too sharply strays far from it: 15 cm on a digit 3 with a cusp)
+        node_inputs(given, rod, settings)
         mu = settings.friction or rod.friction or DEFAULT_FRICTION
         pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
                                    settings.max_abs_kappa_bar)
@@ -252,7 +296,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     t = trajectory_times(all_p, quat, settings.speed_m_s, settings.max_angular_rate_rad_s)
     return PlannedTrajectory(t=t, position=all_p, quaternion=quat, pattern=pattern, inputs=inputs,
                              grasp_position=qbar, grasp_rotvec=rotvec, first_grasp_index=n_lead,
-                             method=settings.method,
+                             method=settings.method, pattern_as_given=given,
                              timings_s={'pattern': t1 - t0, 'grasps': t2 - t1, 'total': time.perf_counter() - t0})
 
 

@@ -1,0 +1,103 @@
+"""Diagnostic: one trajectory replayed in PyElastica (``pyelastica_replay``) and/or our DER with the rod's nodes kept
+every second, so that the two simulators can be compared over time (free end, laid rod), not only at the end.
+
+    PYTHONPATH=ros_ws/src/rod_deploy .venv-bench/bin/python benchmarks/replay_probe.py --sim elastica \
+        --pattern circle --method published --out /tmp/probe_circle_el.npz [--set dt_s=1.5e-4 ...]
+    PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/replay_probe.py --sim der --pattern circle ...
+
+Writes an .npz: times, nodes (k, n, 3), pattern, e_mean_cm, t_release_s, cpu_s.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def load_case(pattern, method, rod):
+    from deployment_table import all_patterns, published_trajectory
+    from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+    P = all_patterns(pattern)[pattern]
+    if method == 'published':
+        t, p, q = published_trajectory(pattern)
+        return P, (t, p, q, tuple(P[0]))
+    plan = plan_trajectory(P, rod, PlannerSettings(method=method))
+    return P, (plan.t, plan.position, plan.quaternion, None)
+
+
+def run_elastica(case, rod, friction, sets, every):
+    import dataclasses
+    from pyelastica_replay import ElasticaSettings, replay_in_elastica
+    s = ElasticaSettings()
+    for k, v in sets.items():
+        typ = type(getattr(s, k))
+        s = dataclasses.replace(s, **{k: typ(v) if typ is not bool else v in ('1', 'true', 'True')})
+    res, _ = replay_in_elastica([case], rod, friction, s, progress=False, snapshot_every_s=every)
+    r = res[0]
+    times = np.array([t for t, _ in r['snapshots']]) - s.hang_settle_s   # replay time (0 = leaves hanging pose)
+    nodes = np.array([n for _, n in r['snapshots']])
+    return times, nodes, r['deployed_xy'], r['t_release_s'] - s.hang_settle_s, repr(s)
+
+
+def run_der(case, rod, friction, sets, every):
+    import dataclasses
+    import rod_deploy.deployment.simulate as sim
+    s = sim.SimulationSettings(friction=friction, start_xy=case[3])
+    for k, v in sets.items():
+        typ = type(getattr(s, k))
+        s = dataclasses.replace(s, **{k: typ(v)})
+    rec = {'k': 0, 'times': [], 'nodes': []}
+    n_every = int(round(every / s.dt_s))
+
+    class Recording(sim.DiscreteElasticRod):
+        def step(self, dt):
+            out = super().step(dt)
+            rec['k'] += 1
+            if rec['k'] % n_every == 0:
+                rec['times'].append(rec['k'] * dt)
+                rec['nodes'].append(self.nodes.copy())
+            return out
+
+    sim.DiscreteElasticRod = Recording
+    t, p, q, _ = case
+    res = sim.simulate_deployment(t, p, q, rod, s)
+    sched = sim.replay_schedule(t, p, q, rod, case[3])
+    return np.array(rec['times']), np.array(rec['nodes']), res.deployed_xy, sched.t_release, repr(s)
+
+
+def main():
+    from deployment_table import RODS
+    from rod_deploy.deployment.metrics import eq17_error
+    from rod_deploy.deployment.simulate import FRICTION_LEVELS
+    from rod_deploy.planning.rod_description import rod_description_from_dict
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--sim', choices=('elastica', 'der'), required=True)
+    ap.add_argument('--pattern', default='circle')
+    ap.add_argument('--method', default='published')
+    ap.add_argument('--rod', type=int, default=3)
+    ap.add_argument('--friction', default='medium')
+    ap.add_argument('--every', type=float, default=1.0, help='snapshot period [simulated s]')
+    ap.add_argument('--set', nargs='*', default=[], help='settings overrides name=value')
+    ap.add_argument('--out', required=True)
+    args = ap.parse_args()
+    rod = rod_description_from_dict(RODS[args.rod])
+    P, case = load_case(args.pattern, args.method, rod)
+    sets = dict(kv.split('=', 1) for kv in args.set)
+    cpu = time.process_time()
+    run = run_elastica if args.sim == 'elastica' else run_der
+    times, nodes, deployed, t_rel, desc = run(case, rod, FRICTION_LEVELS[args.friction], sets, args.every)
+    cpu = time.process_time() - cpu
+    e = eq17_error(P, deployed)
+    np.savez(args.out, times=times, nodes=nodes, pattern=P, deployed=deployed, e_mean_cm=e['e_mean_cm'],
+             t_release_s=t_rel, cpu_s=cpu, settings=desc)
+    print(f"{args.sim} {args.pattern} {args.method} {sets}: e_mean {e['e_mean_cm']:.3f} cm, free end moved "
+          f"{1e3 * np.linalg.norm(deployed[0] - P[0, :2]):.1f} mm, release at {t_rel:.1f} s, CPU {cpu:.0f} s")
+
+
+if __name__ == '__main__':
+    main()

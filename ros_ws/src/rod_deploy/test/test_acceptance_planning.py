@@ -1,0 +1,105 @@
+"""What `rod-deploy plan` tells about a pattern it changes or refuses (found by the acceptance rehearsal,
+``benchmarks/acceptance_rehearsal.py``): with the default friction-limited start, an error names a point of the
+pattern as drawn, and the replaced start is reported (JSON summary, a note on stderr, the plot)."""
+import json
+import re
+
+import numpy as np
+import pytest
+from scipy.interpolate import splev, splprep
+
+from rod_deploy.cli.main import main
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory
+
+ROD = rod_description_from_dict({'length': 0.89, 'radius': 0.002, 'L_gb': 0.034})
+
+
+def digit3():
+    """A hand-drawn 3: curved from its start, a cusp in the middle (|kappa_bar| 42 for rod #3)."""
+    pts = np.array([[-0.055, 0.13], [0.0, 0.16], [0.05, 0.135], [0.045, 0.095], [0.0, 0.08], [0.055, 0.055],
+                    [0.06, 0.0], [0.0, -0.03], [-0.06, -0.005]])
+    tck, _ = splprep(pts.T, s=0, k=3)
+    return np.column_stack(splev(np.linspace(0, 1, 400), tck))
+
+
+def figure8():
+    t = np.linspace(0, 2 * np.pi, 600)
+    return np.column_stack([0.12 * np.cos(t), 0.12 * np.sin(t) * np.cos(t)])
+
+
+def test_a_too_sharp_pattern_is_refused_at_a_point_of_the_pattern_with_the_default_start():
+    """The check ran on the replaced start only: the message named (0.0040, 0.0485) m, 3 cm off the drawn 3, with
+    |kappa_bar| 4.3 instead of the cusp's 42."""
+    pts = digit3()
+    with pytest.raises(PlanningError, match='bends too sharply') as err:
+        plan_trajectory(pts, ROD, PlannerSettings(method='nn'))
+    x, y = map(float, re.search(r'at node \d+ \(([-\d.]+), ([-\d.]+)\) m', str(err.value)).groups())
+    assert np.min(np.hypot(pts[:, 0] - x, pts[:, 1] - y)) < 0.002
+    with pytest.raises(PlanningError) as tangent:
+        plan_trajectory(pts, ROD, PlannerSettings(method='nn', start='tangent'))
+    assert str(tangent.value) == str(err.value)
+
+
+def test_the_replaced_start_is_reported(tmp_path, capsys):
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
+    for name, pts in (('f8', figure8()), ('line', np.column_stack([np.linspace(0, 0.4, 50), np.zeros(50)]))):
+        np.savetxt(tmp_path / f'{name}.txt', pts)
+        assert main(['plan', '--pattern', str(tmp_path / f'{name}.txt'), '--rod', str(rod), '--out',
+                     str(tmp_path / f'{name}.csv'), '--plot', str(tmp_path / f'{name}.png')]) == 0
+        out = capsys.readouterr()
+        summary = json.loads(out.out.strip().splitlines()[-1])
+        if name == 'f8':
+            assert 0.15 < summary['start_replaced_m'] < 0.4 and summary['start_max_deviation_m'] > 0.02
+            assert 'friction-limited start (--start achievable) replaces the first' in out.err
+        else:
+            assert summary['start_replaced_m'] == 0 and summary['start_max_deviation_m'] == 0
+            assert 'replaces' not in out.err
+        assert (tmp_path / f'{name}.png').stat().st_size > 10000
+    plan = plan_trajectory(figure8(), ROD, PlannerSettings(method='nn'))
+    replaced, deviation = plan.start_replacement()
+    assert plan.pattern_as_given is not plan.pattern and deviation > 0.02
+    assert plan_trajectory(figure8(), ROD, PlannerSettings(method='nn', start='tangent')).start_replacement() == (0, 0)
+
+
+def test_the_bend_note_tells_the_pattern_from_its_replaced_start(tmp_path, capsys):
+    """A cursive e bends with |kappa_bar| <= 1.4; its replaced start bends up to 1.8: the note said 'the pattern
+    bends with |kappa_bar| up to 1.8'."""
+    t = np.linspace(-0.75 * np.pi, 1.25 * np.pi, 500)
+    e = np.column_stack([0.025 * t - 0.07 * np.sin(t), 0.07 * np.cos(t)])
+    np.savetxt(tmp_path / 'e.txt', e - e[0])
+    (tmp_path / 'rod.yaml').write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
+    assert main(['plan', '--pattern', str(tmp_path / 'e.txt'), '--rod', str(tmp_path / 'rod.yaml'), '--out',
+                 str(tmp_path / 'e.csv')]) == 0
+    out = capsys.readouterr()
+    summary = json.loads(out.out.strip().splitlines()[-1])
+    assert summary['pattern_max_abs_kappa_bar'] < 1.45 < summary['max_abs_kappa_bar']
+    assert 'the pattern bends' not in out.err
+    assert f'the pattern as drawn: up to {summary["pattern_max_abs_kappa_bar"]:.2g}' in out.err
+
+
+def heart(n=500, phase=0.003):
+    """The classic heart, 20 cm wide: cusps at its bottom tip and its top dent (sampled beside the cusp points)."""
+    t = np.linspace(0, 2 * np.pi, n + 1)[:-1] + phase
+    return 0.2 / 32 * np.column_stack([16 * np.sin(t) ** 3,
+                                       13 * np.cos(t) - 5 * np.cos(2 * t) - 2 * np.cos(3 * t) - np.cos(4 * t)])
+
+
+@pytest.mark.parametrize('start', ['achievable', 'tangent'])
+def test_a_cusp_between_two_nodes_is_refused(start):
+    """The smoothing spline turns the heart's tip within a millimetre (|kappa_bar| 300 there) but its 5 mm nodes
+    saw at most 1.08: the heart was planned. Now the turning over every step of the dense spline is checked."""
+    with pytest.raises(PlanningError, match=r'bends too sharply for this rod at \(0.0000, -0.10\d\d\) m, between two '
+                                            r'nodes: it turns by \d+ degrees within 5 mm'):
+        plan_trajectory(heart(), ROD, PlannerSettings(method='nn', start=start))
+
+
+def test_smooth_patterns_pass_the_check_between_nodes():
+    """The turning over a step equals the node curvature on smooth patterns (a circle of 2 L_gb: kappa_bar 0.5, 0.58
+    at the spline's ends)."""
+    from rod_deploy.planning.trajectory import process_pattern
+    th = np.linspace(0, 1.5 * np.pi, 300)
+    pat = process_pattern(np.column_stack([0.068 * np.sin(th), 0.068 * (1 - np.cos(th))]))
+    assert pat.peak_bend[0] == pytest.approx(np.abs(pat.kappa).max(), rel=0.02)
+    plan_trajectory(np.column_stack([0.068 * np.sin(th), 0.068 * (1 - np.cos(th))]), ROD, PlannerSettings())

@@ -1,0 +1,54 @@
+"""A small self loop whose hole the mask closes: re-traced round the blob (rod_deploy.perception.filled_loops)."""
+import cv2
+import numpy as np
+
+from rod_deploy.perception.centreline import resample
+from rod_deploy.perception.evaluation import arc_length_error, centreline_rms
+from rod_deploy.perception.filled_loops import trace_filled_loop
+
+
+def _loop_scene(width=9, radius=10.0):
+    """A rod coming in from the lower left, looping once (counter-clockwise as seen, crossing itself at the
+    loop's bottom point) and leaving to the lower right; its mask with the loop's hole filled; and the path
+    a skeleton gives through the filled blob (lead-in to the blob's centre, then out)."""
+    x = np.array([100.0, 100.0])                       # the loop's crossing (row, col)
+    c = x - (radius, 0.0)                              # the loop's centre, above it
+    lead_in = np.linspace((140.0, 60.0), x, 60)
+    phi = np.linspace(0.0, 2 * np.pi, 80)
+    loop = np.c_[c[0] + radius * np.cos(phi), c[1] + radius * np.sin(phi)]   # from the bottom, rightwards
+    lead_out = np.linspace(x, (140.0, 140.0), 60)
+    truth = resample(np.vstack([lead_in, loop[1:], lead_out[1:]]), 1.0)
+    mask = np.zeros((200, 200), np.uint8)
+    cv2.polylines(mask, [np.round(truth[:, ::-1]).astype(np.int32)], False, 1, thickness=width)
+    cv2.circle(mask, (int(c[1]), int(c[0])), int(radius), 1, -1)                # the hole closed
+    skeleton_path = resample(np.vstack([lead_in[:-5], c, lead_out[5:]]), 1.0)
+    dist = cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+    return truth, loop, skeleton_path, dist
+
+
+def _farthest_loop_point(path, loop):
+    return max(float(np.min(np.hypot(*(path - q).T))) for q in loop)
+
+
+def test_filled_small_loop_is_traced_round_the_blob_in_order():
+    truth, loop, path, dist = _loop_scene()
+    assert _farthest_loop_point(path, loop) > 8.0                 # the skeleton's path cuts the loop short
+    out = trace_filled_loop(path, dist)
+    assert _farthest_loop_point(out, loop) < 2.0
+    assert centreline_rms(out, truth)['rms_px'] < 1.5
+    assert arc_length_error(out, truth)['mean_px'] < 2.0         # and in the right sense round the loop
+
+
+def test_a_blob_another_rod_passes_through_is_left_alone():
+    truth, loop, path, dist = _loop_scene()
+    other = np.linspace((90.0, 60.0), (90.0, 140.0), 81)         # another rod through the blob: a crossing
+    assert trace_filled_loop(path, dist, other_points=[other]) is path
+    assert trace_filled_loop(path, dist, passes_px=[np.array([[90.0, 100.0]])]) is path
+
+
+def test_a_plain_rod_is_left_alone():
+    truth, loop, path, dist = _loop_scene()
+    mask = np.zeros((200, 200), np.uint8)
+    line = resample(np.linspace((140.0, 60.0), (140.0, 160.0), 101), 1.0)
+    cv2.polylines(mask, [np.round(line[:, ::-1]).astype(np.int32)], False, 1, thickness=9)
+    assert trace_filled_loop(line, cv2.distanceTransform(mask, cv2.DIST_L2, 3)) is line
