@@ -420,6 +420,8 @@ def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, 
     simulation fails or lays nothing) the gain is halved. The planner gets ``planner_rod`` (what it models: L_gb,
     the friction of the start). Returns (best, simulations, record)."""
     settings = settings or PrecompensationSettings()
+    from scipy.ndimage import gaussian_filter1d
+
     from rod_deploy.planning.trajectory import PlanningError
     P = np.asarray(pattern_xy, float)[:, :2]
     t0 = time.perf_counter()
@@ -433,7 +435,6 @@ def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, 
             break
         step = target - sample(best[2], s)
         if settings.smoothing_m > 0:
-            from scipy.ndimage import gaussian_filter1d
             step = gaussian_filter1d(step, settings.smoothing_m / (s[1] - s[0]), axis=0, mode='nearest')
         template = best_template + gain * step
         template[0] = target[0]
@@ -569,12 +570,10 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
             report['warnings'].append('no replanned or pre-compensated trajectory is predicted by the fitted model to '
                                       'deploy better than the original one, which is kept')
         if unmodelled and not simulate:
-            report['warnings'].append('the planner does not model ' + ', '.join(unmodelled) + ': they are '
-                                      'pre-compensated only with --simulate (the fitted simulator in the loop); the '
-                                      'corrected trajectory only uses the fitted L_gb' if 'L_gb_m' in diag.fitted
-                                      else 'the planner does not model ' + ', '.join(unmodelled) + ': they are '
-                                      'pre-compensated only with --simulate (the fitted simulator in the loop); the '
-                                      'corrected trajectory is the original one')
+            uses = 'only uses the fitted L_gb' if 'L_gb_m' in diag.fitted else 'is the original one'
+            report['warnings'].append(f'the planner does not model {", ".join(unmodelled)}: they are pre-compensated '
+                                      f'only with --simulate (the fitted simulator in the loop); the corrected '
+                                      f'trajectory {uses}')
         if not rp.replanned:
             report['error_after'] = {'e_mean_cm': before['e_mean_cm'], 'sigma_cm': before['sigma_cm'],
                                      'coverage': before['coverage'],

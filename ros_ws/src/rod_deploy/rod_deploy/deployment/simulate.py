@@ -11,7 +11,7 @@ a free end carries no moment, so it cannot stay curved; a pin does not carry one
 ``clamp_start_xy`` holds the first nodes on given points, position and direction, a start that carries a moment).
 The rod's rest length is its own length L (CONTRACTS.md section 4: the rod's length is its material length); the
 first static solve stretches it by its weight up to the hanging pose, L + h + rho g L^2 / (2 E). (Until this round
-the rest length was the stretched hanging length, 0.3 % too long for rod #3 and 2.4 % for rod #1: the hanging rod
+the rest length was the stretched hanging length, 0.57 % (5.0 mm) too long for rod #3 and 2.4 % for rod #1: the hanging rod
 then stood on its free end, its lower half compressed, an unstable straight equilibrium whose buckling direction at
 the start of the lead-in was decided by the time step.) The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
