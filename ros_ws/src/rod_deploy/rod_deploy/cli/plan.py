@@ -86,15 +86,15 @@ def run(args) -> int:
         replaced_m, dev_m = plan.start_replacement()
         summary['start_replaced_m'] = round(replaced_m, 4)
         summary['start_max_deviation_m'] = round(dev_m, 4)
-        given = plan.pattern_as_given if plan.pattern_as_given is not None else plan.pattern
-        summary['pattern_max_abs_kappa_bar'] = round(float(abs(given.kappa).max()) * rod.gravito_bending_length_m, 4)
+        summary['pattern_max_abs_kappa_bar'] = round(float(abs(plan.drawn_pattern.kappa).max())
+                                                     * rod.gravito_bending_length_m, 4)
     if args.plot:
         from rod_deploy.deployment.plots import plot_plan
         plot_plan(args.plot, plan)
         summary['plot'] = str(args.plot)
     print(json.dumps(summary))
     from rod_deploy.planning.pattern_input import sparse_points_note
-    note = sparse_points_note(points, (plan.pattern_as_given or plan.pattern).xy)
+    note = sparse_points_note(points, plan.drawn_pattern.xy)
     if note:
         print(f'rod-deploy plan: note: {note}', file=sys.stderr)
     if summary.get('start_max_deviation_m', 0.0) > START_NOTE_M:

@@ -119,6 +119,11 @@ class PlannedTrajectory:
     def rotation(self):
         return Rotation.from_quat(self.quaternion)
 
+    @property
+    def drawn_pattern(self) -> ProcessedPattern:
+        """The processed pattern as drawn: ``pattern_as_given`` when set, else ``pattern``."""
+        return self.pattern_as_given if self.pattern_as_given is not None else self.pattern
+
     def start_replacement(self, tol_m=1e-4):
         """(length [m] of the pattern's start that the planned curve replaces, the largest distance [m] of the
         planned curve from the pattern there); (0, 0) when the pattern is planned as given."""
