@@ -20,6 +20,7 @@ $(STAMP): requirements.txt $(addsuffix /setup.py,$(PACKAGES))
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install --disable-pip-version-check -q -r requirements.txt
 	$(PY) -m pip install --disable-pip-version-check -q --no-deps --no-build-isolation $(addprefix -e ,$(PACKAGES))
+	bash scripts/compile_kernels.sh
 	touch $(STAMP)
 
 test: setup

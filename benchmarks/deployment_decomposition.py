@@ -45,7 +45,7 @@ from rod_deploy.deployment.simulate import SimulationSettings, simulate_deployme
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
 
-#: the planner as it was (equal spline weights, tangent start): the README's 'after' table
+#: the planner as it was (equal spline weights, tangent start): the 'after' table in benchmarks/results/HISTORY.md
 BASE_PLAN = PlannerSettings(end_weight=1.0, start='tangent')
 BASE_SIM = SimulationSettings(friction=0.5)
 VARIANTS = {

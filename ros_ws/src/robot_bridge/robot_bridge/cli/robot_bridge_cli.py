@@ -45,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     for name, default, unit in (('table-xyz', d.table_xyz, 'm'), ('table-rpy', d.table_rpy, 'rad'),
                                 ('grasp-xyz', d.grasp_xyz, 'm'), ('grasp-rpy', d.grasp_rpy, 'rad')):
         plan.add_argument(f'--{name}', nargs=3, type=float, default=list(default), metavar=('A', 'B', 'C'),
-                          help=f'[{unit}] (default {list(np.round(default, 4))})')
+                          help=f'[{unit}] (default ' + ' '.join(f'{v:.6g}' for v in default) + ')')
     plan.add_argument('--velocity-scaling', type=float, default=1.0, help='fraction of the velocity limits')
     plan.add_argument('--acceleration-scaling', type=float, default=1.0, help='fraction of the acceleration limits')
     plan.add_argument('--json', action='store_true', help='print the summary as JSON')

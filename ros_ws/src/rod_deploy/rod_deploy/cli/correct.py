@@ -2,7 +2,7 @@
 
     rod-deploy correct --pattern P --rod ROD.yaml --deployed deployed.csv [--traj traj.csv] --out DIR
                        [--replan] [--simulate] [--effects natural_curvature,L_gb,friction] [--noise-floor-mm 0.5]
-                       [--friction MU] [--edge-length 0.005] [--dt 0.05] [--speed 0.01] [--start tangent|achievable]
+                       [--friction MU] [--edge-length 0.005] [--dt 0.02] [--speed 0.01] [--start tangent|achievable]
 
 The deployed shape (contract CSV x,y, from ``rod-deploy simulate`` or ``rod-deploy perceive``) is compared with our
 simulator replaying the trajectory that laid it (``--traj``; default: the planner's ``nn`` trajectory for the
@@ -45,7 +45,7 @@ def register(subparsers):
     p.add_argument('--friction', type=float, default=None,
                    help='Coulomb coefficient of the deployment (default: the rod file\'s, else 0.5)')
     p.add_argument('--edge-length', type=float, default=0.005, help='rod discretisation [m] (default 0.005)')
-    p.add_argument('--dt', type=float, default=0.05, help='time step [s] (default 0.05)')
+    p.add_argument('--dt', type=float, default=0.02, help='time step [s] (default 0.02, as simulate)')
     p.add_argument('--speed', type=float, default=0.01, help='gripper speed of the replay [m/s] (default 0.01)')
     p.add_argument('--start', choices=('tangent', 'achievable'), default=None,
                    help="the planner's start for the trajectory planned here (as in `rod-deploy plan`; default: the "

@@ -31,7 +31,8 @@ SW 64, W 128) are computed below from these conditions. This is not scikit-image
 without a stated rule (nor symmetric under the half turn that maps the two sub-iterations onto each
 other), and no published rule found reproduces it. The skeletons agree in topology on strokes and lie on
 the same strokes within a few pixels (mostly at the ends); ``test_perception_thinning.py`` checks this,
-``benchmarks/perception_thinning.py`` counts the differing pixels and the README gives the effect on accuracy.
+``benchmarks/perception_thinning.py`` counts the differing pixels and ``benchmarks/results/HISTORY.md``
+(perception) gives the effect on accuracy.
 
 What is faster: an object pixel with no background neighbour is never deleted, so each pass visits only
 a list of the pixels on the object's boundary (found once by a 3 x 3 erosion, then kept up to date from the
