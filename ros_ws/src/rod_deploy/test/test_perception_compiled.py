@@ -90,7 +90,7 @@ def test_medians_are_numpys():
 
 def test_colour_sample_and_lookup_are_the_numpy_gathers():
     from rod_deploy.perception.crossing_order import _sample
-    from rod_deploy.perception.pipeline import _lookup
+    from rod_deploy.perception.centreline import lookup
     rng = np.random.default_rng(4)
     for trial in range(100):
         h, w = rng.integers(3, 60, 2)
@@ -107,7 +107,7 @@ def test_colour_sample_and_lookup_are_the_numpy_gathers():
         for image in (img[:, :, 0].copy(), img[:, :, 1] > 128, rng.random((h, w)).astype(np.float32)):
             p = np.round(pts).astype(int)
             ref = image[np.clip(p[:, 0], 0, h - 1), np.clip(p[:, 1], 0, w - 1)]
-            new = _lookup(image, pts)
+            new = lookup(image, pts)
             assert new.dtype == ref.dtype and np.array_equal(new, ref)
 
 
@@ -133,19 +133,183 @@ def test_arc_length_and_resample_are_the_numpy_formulas():
         assert out.shape == ref.shape and np.array_equal(out, ref)
 
 
-def test_profile_maps_are_the_numpy_broadcasts():
-    from rod_deploy.perception.centreline import _profile_maps
+def test_edge_profiles_are_opencvs_remap():
+    from rod_deploy.perception.centreline import edge_profiles
     rng = np.random.default_rng(8)
-    for trial in range(50):
-        n = int(rng.integers(1, 300))
-        pts = rng.uniform(0, 900, (n, 2))
+    for trial in range(200):
+        h, w = rng.integers(2, 120, 2)
+        image = rng.integers(0, 256, (h, w)).astype(np.uint8)
+        n = int(rng.integers(1, 120))
+        pts = rng.uniform(-4, [h + 3, w + 3], (n, 2))        # some samples beyond the border (replicated)
+        if trial % 4 == 0:
+            pts = np.round(pts * 4) / 4                      # samples on and between pixel centres
         a = rng.uniform(0, 2 * np.pi, n)
         normals = np.stack([np.cos(a), np.sin(a)], axis=1)
         half = rng.uniform(2, 20)
-        offsets = np.arange(-half, half + 1e-9, 0.5)
-        cols, rows = _profile_maps(pts, normals, offsets)
-        assert np.array_equal(rows, (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32))
-        assert np.array_equal(cols, (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32))
+        prof, offsets = edge_profiles(image if trial % 2 else image.astype(np.float32), pts, normals, half)
+        rows = (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32)
+        cols = (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32)
+        ref = cv2.remap(image.astype(np.float32), cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        assert prof.dtype == np.float32 and np.array_equal(prof, ref)
+
+
+def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):
+    """The numpy / cv2.remap end placement that the compiled ray search (_end_target) replaces."""
+    from rod_deploy.perception.centreline import arc_length
+    h, w = evidence.shape
+    for end in (0, 1):
+        p = pts if end == 1 else pts[::-1]
+        s = arc_length(p)
+        trim = min(0.6 * half_width_px * 2.0, 0.25 * s[-1])
+        keep = max(int(np.searchsorted(s, s[-1] - trim, side='right')), 2)
+        p, s = p[:keep], s[:keep]
+        j = min(max(int(np.searchsorted(s, s[-1] - tangent_px)), 0), len(p) - 2)
+        t = p[-1] - p[j]
+        nt = np.linalg.norm(t)
+        if nt < 1e-9:
+            continue
+        t /= nt
+        steps = np.arange(0.0, trim + 2.0 * half_width_px + 4.0 + 1e-9, 0.25)
+        ray = p[-1][None, :] + steps[:, None] * t[None, :]
+        inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
+        vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
+                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
+        peak = float(vals[:8].max())
+        below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
+        if below.any():
+            k15 = int(np.argmax(below))
+            if k15 == 0:
+                target = 0.0
+            else:
+                k60 = int(np.argmax(np.append(vals[:k15] < max(0.6 * peak, floor), True)))
+                g = -np.gradient(vals)
+                lo, hi = max(k60 - 1, 0), min(k15 + 1, len(vals) - 1)
+                k = lo + int(np.argmax(g[lo:hi + 1]))
+                a, b, c = g[max(k - 1, 0)], g[k], g[min(k + 1, len(g) - 1)]
+                denom = a - 2 * b + c
+                d = np.clip(np.where(np.abs(denom) > 1e-9, 0.5 * (a - c) / denom if denom else 0.0, 0.0), -0.5, 0.5)
+                target = steps[k] + 0.25 * d - half_width_px
+        elif not inside.all():
+            target = steps[int(np.argmin(inside)) - 1]
+        else:
+            continue
+        if target > 0.5:
+            extra = np.arange(1.0, target + 1e-9, 1.0)
+            if extra.size == 0 or extra[-1] < target - 1e-6:
+                extra = np.append(extra, target)
+            p = np.vstack([p, p[-1] + extra[:, None] * t[None, :]])
+        elif target < -0.5:
+            cut = min(-target, 0.5 * half_width_px + 1.0, 0.3 * s[-1])
+            last = np.interp(s[-1] - cut, s, np.arange(len(p)))
+            i0 = int(np.floor(last))
+            q = p[i0] + (last - i0) * (p[min(i0 + 1, len(p) - 1)] - p[i0])
+            p = np.vstack([p[s <= s[-1] - cut], q[None]])
+        pts = p if end == 1 else p[::-1]
+    return pts
+
+
+def test_end_placement_is_the_numpy_ray_search():
+    from rod_deploy.perception.centreline import RefinedPath, place_ends
+    rng = np.random.default_rng(13)
+    moved = 0
+    for trial in range(300):
+        h, w = rng.integers(40, 160, 2)
+        evidence = np.zeros((h, w), np.uint8)
+        a, b = rng.uniform(-10, [h + 10, w + 10], (2, 2))
+        width = int(rng.integers(3, 15))
+        cv2.line(evidence, (int(a[1]), int(a[0])), (int(b[1]), int(b[0])), int(rng.integers(40, 255)), width)
+        evidence = cv2.GaussianBlur(evidence, (5, 5), 1.0)
+        if trial % 3 == 0:
+            evidence = cv2.add(evidence, rng.integers(0, 30, (h, w)).astype(np.uint8))
+        n = int(rng.integers(3, 80))
+        shrink = rng.uniform(0, 0.3)
+        pts = a + np.linspace(shrink, 1 - shrink, n)[:, None] * (b - a) + rng.normal(0, 0.3, (n, 2))
+        floor, half = float(rng.uniform(5, 30)), 0.5 * width
+        out = place_ends(RefinedPath(pts.copy(), float(width), False, np.full(n, np.nan)), evidence, floor, half,
+                         max(4.0, width)).points
+        ref = _place_end_reference(pts.copy(), evidence.astype(np.float32), floor, half, max(4.0, width))
+        assert out.shape == ref.shape and np.array_equal(out, ref)
+        moved += not np.array_equal(out, pts)
+    assert moved > 200
+
+
+def test_smoothing_and_tangents_are_the_numpy_formulas():
+    from scipy.ndimage import gaussian_filter1d
+
+    from rod_deploy.perception.centreline import smooth, tangents
+    rng = np.random.default_rng(14)
+    for trial in range(600):
+        n = int(rng.integers(2, 90))
+        p = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 3 + 100
+        if trial % 5 == 0:
+            p[1:3] = p[0]                                    # repeated points: zero tangents
+        closed = bool(trial % 2) and n > 3
+        if closed:
+            p[-1] = p[0]
+        sigma = float(rng.choice([1.0, 1.5, 2.0, rng.uniform(0.5, 4)]))
+        if n < 3:
+            ref = p.copy()
+        elif closed:
+            out = gaussian_filter1d(p[:-1], sigma, axis=0, mode='wrap')
+            ref = np.vstack([out, out[:1]])
+        else:
+            pad = min(n - 1, int(np.ceil(4 * sigma)))
+            ext = np.vstack([2 * p[0] - p[pad:0:-1], p, 2 * p[-1] - p[-2:-pad - 2:-1]])
+            ref = gaussian_filter1d(ext, sigma, axis=0, mode='nearest')[pad:pad + n]
+        assert np.array_equal(smooth(p, sigma, closed), ref)
+        if closed:
+            t = np.roll(p[:-1], -1, axis=0) - np.roll(p[:-1], 1, axis=0)
+            t = np.vstack([t, t[:1]])
+        else:
+            t = np.gradient(p, axis=0)
+        norm = np.linalg.norm(t, axis=1, keepdims=True)
+        norm[norm == 0] = 1.0
+        assert np.array_equal(tangents(p, closed), t / norm)
+
+
+def test_lab_conversion_of_a_row_is_that_of_a_column():
+    from rod_deploy.perception.crossing_order import _lab
+    rng = np.random.default_rng(15)
+    for trial in range(300):
+        n = int(rng.integers(1, 2000))
+        px = rng.integers(0, 9 * 255 + 1, (n, 3)).astype(np.float32) / np.float32(9.0)   # 3x3 means, as sampled
+        ref = cv2.cvtColor(px.reshape(-1, 1, 3) / 255.0, cv2.COLOR_BGR2Lab).reshape(-1, 3)
+        assert np.array_equal(_lab(px), ref)
+
+
+def test_background_medians_and_otsu_are_the_numpy_formulas():
+    from rod_deploy.perception.segmentation import _channel_medians, _otsu
+    rng = np.random.default_rng(16)
+    for trial in range(500):
+        n = int(rng.integers(1, 400))
+        px = (rng.integers(0, 256, (n, 3)) if trial % 2 else rng.integers(100, 104, (n, 3))).astype(np.uint8)
+        median = np.empty(3)
+        spread = _channel_medians(px, median)
+        ref = np.median(px, axis=0)
+        assert np.array_equal(median, ref) and spread == np.abs(px - ref).max()
+        hist = rng.integers(0, 10 ** int(rng.integers(1, 6)), 256).astype(float)
+        hist[rng.random(256) < rng.uniform(0, 1)] = 0
+        p = hist / max(hist.sum(), 1.0)
+        omega, mu = np.cumsum(p), np.cumsum(p * np.arange(256))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            between = (mu[-1] * omega - mu) ** 2 / (omega * (1.0 - omega))
+        between[~np.isfinite(between)] = -1.0
+        assert _otsu(hist) == float(np.argmax(between))
+
+
+def test_zones_are_the_numpy_discs():
+    from rod_deploy.perception.pipeline import _in_zones
+    rng = np.random.default_rng(17)
+    for trial in range(200):
+        pts = rng.uniform(0, 100, (int(rng.integers(6, 300)), 2))
+        k = int(rng.integers(0, 6))
+        centres, radii = rng.uniform(0, 100, (k, 2)), rng.uniform(0, 30, k)
+        if k:
+            pts[:k] = centres + radii[:, None] * np.array([0.6, 0.8])    # on a circle: hypot == radius
+        ref = np.zeros(len(pts), bool)
+        for c, r in zip(centres, radii):
+            ref |= np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) <= r
+        assert np.array_equal(_in_zones(pts, centres.reshape(-1, 2), radii), ref)
 
 
 def test_hermite_connector_is_the_numpy_formula():

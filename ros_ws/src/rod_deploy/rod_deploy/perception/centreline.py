@@ -75,6 +75,27 @@ def _path_length(points):
     return _pairwise_sum(steps, 0, steps.size)
 
 
+def lookup(image, points):
+    """``image`` at the pixels nearest to (row, col) ``points`` (rounded half to even, as np.round; clipped
+    to the image), compiled for float point arrays."""
+    points = np.asarray(points)
+    if points.dtype != np.float64 or points.ndim != 2 or image.ndim != 2:
+        p = np.round(points).astype(int)
+        return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
+                     np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    out = np.empty(len(points), image.dtype)
+    _lookup_kernel(image.view(np.uint8) if image.dtype == bool else image, points,
+                   out.view(np.uint8) if image.dtype == bool else out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _lookup_kernel(image, points, out):
+    h, w = image.shape
+    for i in range(points.shape[0]):
+        out[i] = image[min(max(int(np.rint(points[i, 0])), 0), h - 1), min(max(int(np.rint(points[i, 1])), 0), w - 1)]
+
+
 def resample(points: np.ndarray, step_px: float) -> np.ndarray:
     """Points at equal arc-length spacing (last spacing at most ``step_px``), both ends kept."""
     points = np.asarray(points, dtype=np.float64)
@@ -285,7 +306,7 @@ def _bilinear(image, r, c):
 def _end_target(evidence, end, t, steps, floor, half_width_px):
     """(found, target): where the end at ``end`` (row, col) should go along the unit tangent ``t``, as an
     offset [px] along it. The evidence is sampled (:func:`_bilinear`) at ``end + steps t``; the boundary is
-    the first sample inside the image below 15 % of the peak (the largest of the first 8 samples; at least
+    the first sample inside the image (the ray may enter it late) below 15 % of the peak (the largest of the first 8 samples; at least
     ``floor`` / 2): at the first sample, the end is already outside (target 0); else the steepest fall
     (central differences) from one step before the first sample below 60 % of the peak (at least ``floor``)
     to one step past it, refined by a parabola, and the target is half a width inside it. No sample below
@@ -294,11 +315,13 @@ def _end_target(evidence, end, t, steps, floor, half_width_px):
     h, w = evidence.shape
     n = steps.size
     vals = np.empty(n, np.float32)
+    inside = np.empty(n, np.bool_)
     first_outside = -1
     for k in range(n):
         r = end[0] + steps[k] * t[0]
         c = end[1] + steps[k] * t[1]
-        if first_outside < 0 and not (r >= -0.5 and r <= h - 0.5 and c >= -0.5 and c <= w - 0.5):
+        inside[k] = r >= -0.5 and r <= h - 0.5 and c >= -0.5 and c <= w - 0.5
+        if first_outside < 0 and not inside[k]:
             first_outside = k
         vals[k] = _bilinear(evidence, np.float32(r), np.float32(c))
     peak = vals[0]
@@ -308,7 +331,7 @@ def _end_target(evidence, end, t, steps, floor, half_width_px):
     level15 = np.float32(max(0.15 * peak64, 0.5 * floor))
     k15 = -1
     for k in range(n):
-        if vals[k] < level15 and (first_outside < 0 or k < first_outside):
+        if vals[k] < level15 and inside[k]:
             k15 = k
             break
     if k15 < 0:

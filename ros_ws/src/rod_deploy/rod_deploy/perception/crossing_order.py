@@ -18,6 +18,7 @@ Colour confidence = (d_under - d_over) / separation, in [0, 1] for a clean decis
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -111,10 +112,18 @@ def colour_sampler(image_bgr: np.ndarray):
 
 
 def _disc(centre: np.ndarray, radius: float) -> np.ndarray:
+    """(row, col) of the pixel offsets within ``radius`` of ``centre``, float."""
+    dr, dc = _disc_offsets(float(radius))
+    return np.stack([centre[0] + dr, centre[1] + dc], axis=1).astype(float)
+
+
+@lru_cache(maxsize=32)
+def _disc_offsets(radius: float):
+    """Integer (row, col) offsets within ``radius`` (one crossing after another asks for the same disc)."""
     rr = max(1, int(np.ceil(radius)))
     dr, dc = np.mgrid[-rr:rr + 1, -rr:rr + 1]
     keep = dr ** 2 + dc ** 2 <= radius ** 2
-    return np.stack([centre[0] + dr[keep], centre[1] + dc[keep]], axis=1).astype(float)
+    return dr[keep], dc[keep]
 
 
 def _strand_points(points, first, last, centre, width_px):

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
-from rod_deploy.perception.centreline import path_length
+from rod_deploy.perception.centreline import arc_length, path_length
 from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
@@ -331,7 +331,7 @@ def trim_foreign_ends(o, colours_at, width_px: float, min_separation: float, rea
     if o.closed or len(o.points) < 8:
         return o
     pts = o.points
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s = arc_length(pts)
     reach = reach_factor * width_px
     if s[-1] < 4 * reach:
         return o
@@ -365,12 +365,12 @@ def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
     pts = o.points
     if len(pts) < 8:
         return None
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
+    s = arc_length(pts)
     if s[-1] < 2 * min_length_px:
         return None
     step = max(1.0, 0.5 * width_px)
-    idx = np.unique(np.searchsorted(s, np.arange(0.0, s[-1], step)).clip(0, len(pts) - 1))
+    idx = np.searchsorted(s, np.arange(0.0, s[-1], step)).clip(0, len(pts) - 1)
+    idx = idx[np.concatenate([[True], idx[1:] != idx[:-1]])]      # np.unique of the sorted indices
     keep = np.ones(len(idx), dtype=bool)
     for _, i0, i1 in o.passes:                      # crossings show the upper strand's colour
         keep &= ~((s[idx] >= s[i0] - width_px) & (s[idx] <= s[i1] + width_px))
@@ -471,7 +471,7 @@ def place_abutting_end(points: np.ndarray, anchor, centre, colours_at, width_px:
     pts = np.asarray(points, float)
     if len(pts) < 4:
         return pts
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s = arc_length(pts)
     ia = int(np.argmin(np.hypot(pts[:, 0] - anchor[0], pts[:, 1] - anchor[1])))
     sa = s[ia]
     body = (s >= sa - 6.0 * width_px) & (s <= sa - 2.0 * width_px)
