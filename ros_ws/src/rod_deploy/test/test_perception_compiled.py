@@ -133,8 +133,8 @@ def test_arc_length_and_resample_are_the_numpy_formulas():
         assert out.shape == ref.shape and np.array_equal(out, ref)
 
 
-def test_edge_profiles_are_opencvs_remap():
-    from rod_deploy.perception.centreline import edge_profiles
+def test_edge_profiles_are_the_remap_of_the_numpy_maps():
+    from rod_deploy.perception.centreline import _bilinear, edge_profiles
     rng = np.random.default_rng(8)
     for trial in range(200):
         h, w = rng.integers(2, 120, 2)
@@ -146,11 +146,15 @@ def test_edge_profiles_are_opencvs_remap():
         a = rng.uniform(0, 2 * np.pi, n)
         normals = np.stack([np.cos(a), np.sin(a)], axis=1)
         half = rng.uniform(2, 20)
-        prof, offsets = edge_profiles(image if trial % 2 else image.astype(np.float32), pts, normals, half)
+        prof, offsets = edge_profiles(image.astype(np.float32), pts, normals, half)
         rows = (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32)
         cols = (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32)
         ref = cv2.remap(image.astype(np.float32), cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         assert prof.dtype == np.float32 and np.array_equal(prof, ref)
+        # the compiled bilinear sample (end placement) is remap's, on uint8 and float32 images
+        for i, j in zip(rng.integers(0, n, 20), rng.integers(0, len(offsets), 20)):
+            for img in (image, image.astype(np.float32)):
+                assert _bilinear(img, rows[i, j], cols[i, j]) == ref[i, j]
 
 
 def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import cv2
 import numpy as np
 from numba import njit
 from numba.core import types
@@ -251,25 +252,26 @@ def _unit_tangents(points, closed):
 
 def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray, half_span_px: float,
                   step_px: float = 0.5):
-    """Evidence (uint8 or float32 image) sampled across the path: float32 (n, k) profiles at offsets (k,) [px]
-    along the normals, bilinear with the border replicated (:func:`_bilinear`)."""
+    """Evidence (float32 image) sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals
+    (cv2.remap, bilinear, border replicated: its vectorised kernel is faster than :func:`_bilinear` here)."""
     offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
-    prof = _profiles(evidence, np.ascontiguousarray(points, dtype=np.float64),
-                     np.ascontiguousarray(normals, dtype=np.float64), offsets)
+    cols, rows = _profile_maps(np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64), offsets)
+    prof = cv2.remap(evidence, cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return prof, offsets
 
 
 @njit(cache=True, nogil=True)
-def _profiles(image, points, normals, offsets):
-    """The samples at p + o n (computed in float64, then rounded to float32), as ``cv2.remap(image, cols, rows,
-    INTER_LINEAR, borderMode=BORDER_REPLICATE)`` of those float32 maps gives them, without building the maps."""
+def _profile_maps(points, normals, offsets):
+    """float32 (col, row) maps of the samples p + o n (computed in float64, then rounded to float32, as numpy
+    does with points[:, k:k+1] + offsets[None, :] * normals[:, k:k+1])."""
     n, k = points.shape[0], offsets.size
-    out = np.empty((n, k), np.float32)
+    cols = np.empty((n, k), np.float32)
+    rows = np.empty((n, k), np.float32)
     for i in range(n):
         for j in range(k):
-            out[i, j] = _bilinear(image, np.float32(points[i, 0] + offsets[j] * normals[i, 0]),
-                                  np.float32(points[i, 1] + offsets[j] * normals[i, 1]))
-    return out
+            rows[i, j] = np.float32(points[i, 0] + offsets[j] * normals[i, 0])
+            cols[i, j] = np.float32(points[i, 1] + offsets[j] * normals[i, 1])
+    return cols, rows
 
 
 @intrinsic

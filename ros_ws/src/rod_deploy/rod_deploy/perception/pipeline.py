@@ -211,7 +211,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     t4 = time.perf_counter()
     timings['crossing_order'] = (t4 - t3) * 1e3
 
-    evidence = seg.evidence                   # uint8: the compiled bilinear samples read it as float32
+    evidence = seg.evidence.astype(np.float32)
     floor = 0.25 * seg.threshold
     objects = []
     for obj in traced:
