@@ -30,8 +30,11 @@ from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
+from numba import njit
+from numba.core import types
+from numba.extending import intrinsic
 
-from rod_deploy.perception.centreline import arc_length
+from rod_deploy.perception.centreline import _arc_length
 from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 
@@ -268,33 +271,72 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
 
     The anchor sits ``skip_px`` of arc length out (at most ``max_fraction`` of the branch, so that the two
     ends of a short loop keep distinct anchors); the tangent is the principal direction of the next
-    ``fit_px`` of arc, oriented towards the crossing.
+    ``fit_px`` of arc, oriented towards the crossing. (n >= 1, 2) points; compiled (:func:`_branch_geometry`).
     """
-    points = points[:int(2 * (skip_px + fit_px)) + 3]           # only the start matters (1 px steps)
-    s = arc_length(points)                  # (compiled; the same cumulative sums)
-    total = s[-1]
-    skip = min(skip_px, max_fraction * total)
-    i0 = min(int(s.searchsorted(skip)), len(points) - 1)
-    i1 = min(max(int(s.searchsorted(s[i0] + fit_px)), i0 + 1), len(points) - 1)
-    if i1 <= i0:    # a branch of one point: direction from the crossing
-        i0 = max(0, len(points) - 1)
-        d = points[0] - points[-1] if len(points) > 1 else np.array([0.0, 1.0])
-    else:
-        section = points[i0:i1 + 1]
-        centred = section - section.mean(axis=0)
-        (a, b), (_, c) = (centred.T @ centred).tolist()
-        # principal axis of the 2x2 scatter matrix [[a, b], [b, c]] (closed form; isotropic: the column axis)
-        if b == 0.0:
-            d = np.array([1.0, 0.0]) if a > c else np.array([0.0, 1.0])
+    points = np.ascontiguousarray(points[:int(2 * (skip_px + fit_px)) + 3], dtype=np.float64)  # only the start
+    if points.ndim != 2 or points.shape[1] != 2 or not len(points):
+        raise ValueError(f'expected (n >= 1, 2) branch points, got shape {points.shape}')
+    d = np.empty(2)
+    return int(_branch_geometry(points, float(skip_px), float(fit_px), float(max_fraction), d)), d
+
+
+@intrinsic
+def _fma64(typingctx, a, b, c):
+    """a b + c with a single rounding (LLVM's fma)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(args[0], args[1], args[2])
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def _branch_geometry(points, skip_px, fit_px, max_fraction, d):
+    """:func:`branch_geometry` into ``d``, returning the anchor index. The numpy formulas' arithmetic (on this
+    machine's numpy and OpenBLAS, checked in the tests): arc length as :func:`~.centreline.arc_length`;
+    np.searchsorted (left); the section's mean as numpy's mean along axis 0 (running sums / n); its scatter
+    ``centred.T @ centred`` as OpenBLAS's running fused multiply-adds; the principal axis theta =
+    atan2(2 b, a - c) / 2 (isotropic: the column axis); oriented by the sign of the dot product with
+    p[i0] - p[i1] (an fma, as OpenBLAS's ddot); a one-point section: the direction from the crossing,
+    normalised by its np.linalg.norm (sqrt of the same fma)."""
+    n = points.shape[0]
+    s = _arc_length(points)
+    skip = min(skip_px, max_fraction * s[n - 1])
+    i0 = min(np.searchsorted(s, skip), n - 1)
+    i1 = min(max(np.searchsorted(s, s[i0] + fit_px), i0 + 1), n - 1)
+    if i1 <= i0:            # a branch of one point: direction from the crossing
+        i0 = max(0, n - 1)
+        if n > 1:
+            d[0], d[1] = points[0, 0] - points[n - 1, 0], points[0, 1] - points[n - 1, 1]
         else:
-            theta = 0.5 * math.atan2(2.0 * b, a - c)
-            d = np.array([math.cos(theta), math.sin(theta)])
-        if np.dot(d, points[i0] - points[i1]) < 0:
-            d = -d
-        return i0, d
-    norm = np.linalg.norm(d)
-    d = d / norm if norm > 0 else np.array([0.0, 1.0])
-    return i0, d
+            d[0], d[1] = 0.0, 1.0
+        norm = np.sqrt(_fma64(d[1], d[1], d[0] * d[0]))
+        if norm > 0:
+            d[0], d[1] = d[0] / norm, d[1] / norm
+        else:
+            d[0], d[1] = 0.0, 1.0
+        return i0
+    m = i1 + 1 - i0
+    mean_r, mean_c = 0.0, 0.0
+    for k in range(i0, i1 + 1):
+        mean_r += points[k, 0]
+        mean_c += points[k, 1]
+    mean_r, mean_c = mean_r / m, mean_c / m
+    a, b, c = 0.0, 0.0, 0.0
+    for k in range(i0, i1 + 1):
+        x, y = points[k, 0] - mean_r, points[k, 1] - mean_c
+        a = _fma64(x, x, a)
+        b = _fma64(x, y, b)
+        c = _fma64(y, y, c)
+    if b == 0.0:
+        d[0], d[1] = (1.0, 0.0) if a > c else (0.0, 1.0)
+    else:
+        theta = 0.5 * math.atan2(2.0 * b, a - c)
+        d[0], d[1] = math.cos(theta), math.sin(theta)
+    dr, dc = points[i0, 0] - points[i1, 0], points[i0, 1] - points[i1, 1]
+    if _fma64(d[1], dc, d[0] * dr) < 0:
+        d[0], d[1] = -d[0], -d[1]
+    return i0
 
 
 def attach_branch_geometry(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px: float,
