@@ -33,18 +33,36 @@ def test_compiled_edge_contrasts_equal_the_numpy_probes():
     finite = 0
     for trial in range(400):
         h, w = rng.integers(80, 240, 2)
-        grey = rng.integers(0, 256, (h, w)).astype(np.uint8)
+        bgr = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)
+        grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
         centre = rng.uniform([0, 0], [h, w]) if trial % 4 == 0 else rng.uniform([35, 35], [h - 35, w - 35])
         a = rng.uniform(0, 2 * np.pi)
         b = a + rng.uniform(0.05, np.pi)
         dirs = _perturbed_directions(np.array([np.cos(a), np.sin(a)]), np.array([np.cos(b), np.sin(b)]),
                                      np.radians(8.0))
         wa, wb = rng.uniform(1, 22, 2)
-        new = _edge_contrasts(grey, centre, dirs, wa, wb)
+        new = _edge_contrasts(bgr, centre, dirs, wa, wb)                # grey converted per probed pixel
         ref = _reference_contrasts(grey, centre, dirs, wa, wb)
         assert np.array_equal(np.array(new), np.array(ref), equal_nan=True)
         finite += int(np.isfinite(new).sum())
     assert finite > 1000          # most probe sets lie inside the image
+
+
+def test_probe_grey_is_opencvs_on_every_colour():
+    from numba import njit
+
+    from rod_deploy.perception.crossing_order import _grey
+
+    @njit(cache=False)
+    def grey_image(bgr):
+        out = np.empty(bgr.shape[:2], np.uint8)
+        for r in range(bgr.shape[0]):
+            for c in range(bgr.shape[1]):
+                out[r, c] = _grey(bgr, r, c)
+        return out
+    levels = np.arange(256, dtype=np.uint8)
+    every = np.stack(np.meshgrid(levels, levels, levels, indexing='ij'), axis=-1).reshape(4096, 4096, 3)
+    assert np.array_equal(grey_image(every), cv2.cvtColor(every, cv2.COLOR_BGR2GRAY))
 
 
 def test_distance_map_equals_opencv_on_the_whole_image():

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from functools import lru_cache
 from dataclasses import dataclass, field
 from itertools import combinations
 
@@ -399,6 +400,13 @@ def _perfect_matchings(items):
             yield [(first, rest[k])] + m
 
 
+@lru_cache(maxsize=16)
+def _all_matchings(n: int) -> tuple:
+    """Every perfect matching of range(n) (odd n: of all but one, left out in turn), in enumeration order."""
+    leave_out = [None] if n % 2 == 0 else list(range(n))
+    return tuple(tuple(m) for skip in leave_out for m in _perfect_matchings([i for i in range(n) if i != skip]))
+
+
 def colours_differ(ci, cj, min_separation: float) -> bool:
     return ci is not None and cj is not None and float(np.linalg.norm(ci - cj)) > min_separation
 
@@ -420,14 +428,12 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penal
         energy[i, j] = energy[j, i] = e
     if n <= max_exhaustive:
         best, best_e = [], np.inf
-        leave_out = [None] if n % 2 == 0 else list(range(n))
-        for skip in leave_out:
-            items = [i for i in range(n) if i != skip]
-            for m in _perfect_matchings(items):
-                e = sum(energy[i, j] for i, j in m)
-                if e < best_e:
-                    best, best_e = m, e
-        return best, float(best_e)
+        table = energy.tolist()          # plain floats: the same sums, without numpy scalar indexing
+        for m in _all_matchings(n):
+            e = sum(table[i][j] for i, j in m)
+            if e < best_e:
+                best, best_e = m, e
+        return list(best), float(best_e)
     # many branches (a tangle): greedy, cheapest pair first
     pairs, used, total = [], set(), 0.0
     for e, i, j in sorted((energy[i, j], i, j) for i, j in combinations(range(n), 2)):
