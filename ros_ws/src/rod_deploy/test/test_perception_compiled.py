@@ -106,6 +106,25 @@ def test_medians_are_numpys():
                                                                 np.round(pts[:, 1]).astype(int)]))
 
 
+def test_column_medians_are_numpys():
+    from rod_deploy.perception.crossing_order import _strand_points, median0
+    rng = np.random.default_rng(19)
+    for n in range(1, 80):
+        for shape in ((n,), (n, 2), (n, 3)):
+            v = (rng.normal(size=shape) * 40).astype(np.float32)
+            if n % 3 == 0:
+                v = np.round(v)                                   # ties
+            ref = np.median(v, axis=0)
+            out = median0(v)
+            assert np.asarray(out).dtype == ref.dtype and np.array_equal(out, ref)
+        pts = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 2
+        centre, w = rng.normal(size=2) * 5, rng.uniform(1, 6)
+        d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
+        near = (d >= 1.5 * w) & (d <= 3.5 * w)
+        near = near if near.sum() >= 3 else d >= 1.5 * w
+        assert np.array_equal(_strand_points(pts, 0, n - 1, centre, w), pts[near] if near.sum() >= 3 else pts[:0])
+
+
 def test_colour_sample_and_lookup_are_the_numpy_gathers():
     from rod_deploy.perception.crossing_order import _sample
     from rod_deploy.perception.centreline import lookup

@@ -32,11 +32,10 @@ from itertools import combinations
 
 import numpy as np
 from numba import njit
-from numba.core import types
-from numba.extending import intrinsic
 
 from rod_deploy.perception.centreline import _arc_length
 from rod_deploy.perception.crossing_order import median0
+from rod_deploy.perception.fma import fma64
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 
 MAX_TURN_RAD = np.pi - 1e-3
@@ -281,16 +280,6 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
     return int(_branch_geometry(points, float(skip_px), float(fit_px), float(max_fraction), d)), d
 
 
-@intrinsic
-def _fma64(typingctx, a, b, c):
-    """a b + c with a single rounding (LLVM's fma)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        return builder.fma(args[0], args[1], args[2])
-    return sig, codegen
-
-
 @njit(cache=True, nogil=True)
 def _branch_geometry(points, skip_px, fit_px, max_fraction, d):
     """:func:`branch_geometry` into ``d``, returning the anchor index. The numpy formulas' arithmetic (on this
@@ -311,7 +300,7 @@ def _branch_geometry(points, skip_px, fit_px, max_fraction, d):
             d[0], d[1] = points[0, 0] - points[n - 1, 0], points[0, 1] - points[n - 1, 1]
         else:
             d[0], d[1] = 0.0, 1.0
-        norm = np.sqrt(_fma64(d[1], d[1], d[0] * d[0]))
+        norm = np.sqrt(fma64(d[1], d[1], d[0] * d[0]))
         if norm > 0:
             d[0], d[1] = d[0] / norm, d[1] / norm
         else:
@@ -326,16 +315,16 @@ def _branch_geometry(points, skip_px, fit_px, max_fraction, d):
     a, b, c = 0.0, 0.0, 0.0
     for k in range(i0, i1 + 1):
         x, y = points[k, 0] - mean_r, points[k, 1] - mean_c
-        a = _fma64(x, x, a)
-        b = _fma64(x, y, b)
-        c = _fma64(y, y, c)
+        a = fma64(x, x, a)
+        b = fma64(x, y, b)
+        c = fma64(y, y, c)
     if b == 0.0:
         d[0], d[1] = (1.0, 0.0) if a > c else (0.0, 1.0)
     else:
         theta = 0.5 * math.atan2(2.0 * b, a - c)
         d[0], d[1] = math.cos(theta), math.sin(theta)
     dr, dc = points[i0, 0] - points[i1, 0], points[i0, 1] - points[i1, 1]
-    if _fma64(d[1], dc, d[0] * dr) < 0:
+    if fma64(d[1], dc, d[0] * dr) < 0:
         d[0], d[1] = -d[0], -d[1]
     return i0
 

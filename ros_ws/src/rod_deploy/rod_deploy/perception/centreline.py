@@ -20,11 +20,10 @@ from functools import lru_cache
 import cv2
 import numpy as np
 from numba import njit
-from numba.core import types
-from numba.extending import intrinsic
 from scipy.ndimage import gaussian_filter1d
 
 from rod_deploy.perception.crossing_order import _pairwise_sum
+from rod_deploy.perception.fma import fma32
 
 
 @dataclass
@@ -274,16 +273,6 @@ def _profile_maps(points, normals, offsets):
     return cols, rows
 
 
-@intrinsic
-def _fma32(typingctx, a, b, c):
-    """a b + c in float32 with a single rounding (LLVM's fma: the FMA instruction, or the library's fmaf)."""
-    sig = types.float32(types.float32, types.float32, types.float32)
-
-    def codegen(context, builder, signature, args):
-        return builder.fma(args[0], args[1], args[2])
-    return sig, codegen
-
-
 @njit(cache=True, nogil=True)
 def _bilinear(image, r, c):
     """The value at float32 (row, col) of a one-channel image, as ``cv2.remap(image.astype(np.float32), ...,
@@ -299,9 +288,9 @@ def _bilinear(image, r, c):
     ca, cb = min(max(c0, 0), w - 1), min(max(c0 + 1, 0), w - 1)
     p00, p01 = np.float32(image[ra, ca]), np.float32(image[ra, cb])
     p10, p11 = np.float32(image[rb, ca]), np.float32(image[rb, cb])
-    v0 = _fma32(ac, p01 - p00, p00)
-    v1 = _fma32(ac, p11 - p10, p10)
-    return _fma32(ar, v1 - v0, v0)
+    v0 = fma32(ac, p01 - p00, p00)
+    v1 = fma32(ac, p11 - p10, p10)
+    return fma32(ar, v1 - v0, v0)
 
 
 @njit(cache=True, nogil=True)

@@ -24,6 +24,8 @@ import cv2
 import numpy as np
 from numba import njit
 
+from rod_deploy.perception.fma import fma64
+
 
 @dataclass
 class CrossingDecision:
@@ -79,12 +81,33 @@ def _mean3x3(image, points, out):
 
 
 def median0(values: np.ndarray) -> np.ndarray:
-    """``np.median(values, axis=0)`` (finite values) without its per-call overhead: many small arrays."""
+    """``np.median(values, axis=0)`` (finite values) without its per-call overhead: many small arrays (the
+    colours and widths here, float32, in one compiled call)."""
+    values = np.asarray(values)
+    if len(values) and values.dtype == np.float32 and values.ndim in (1, 2):
+        columns = np.ascontiguousarray(values.reshape(len(values), -1))
+        out = np.empty(columns.shape[1], np.float32)
+        _column_medians(columns, out)
+        return out[0] if values.ndim == 1 else out
     s = np.sort(values, axis=0)
     if not len(s):
         return np.full(s.shape[1:], np.nan)   # as np.median
     h = len(s) // 2
     return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
+
+
+@njit(cache=True, nogil=True)
+def _column_medians(values, out):
+    """out[c] = the middle of the sorted column c, or the mean of the two middle values (their sum halved, in
+    the arrays' float type, as numpy computes it)."""
+    n, m = values.shape
+    h = n // 2
+    column = np.empty(n, values.dtype)
+    for c in range(m):
+        for i in range(n):
+            column[i] = values[i, c]
+        column.sort()
+        out[c] = column[h] if n % 2 else (column[h - 1] + column[h]) / 2
 
 
 def colour_sampler(image_bgr: np.ndarray):
@@ -131,11 +154,29 @@ def _strand_points(points, first, last, centre, width_px):
     that, beyond 1.5 widths); empty if fewer than three."""
     reach = int(np.ceil(4 * width_px)) + 2
     points = points[max(0, first - reach):last + reach + 1]
-    d = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1])
-    near = (d >= 1.5 * width_px) & (d <= 3.5 * width_px)
-    if near.sum() < 3:
-        near = d >= 1.5 * width_px
-    return points[near] if near.sum() >= 3 else points[:0]
+    near = np.empty(len(points), np.bool_)
+    count = _near_ring(np.ascontiguousarray(points, dtype=np.float64), float(centre[0]), float(centre[1]),
+                       1.5 * width_px, 3.5 * width_px, near)
+    return points[near] if count >= 3 else points[:0]
+
+
+@njit(cache=True, nogil=True)
+def _near_ring(points, centre_r, centre_c, inner, outer, near):
+    """near = inner <= |p - centre| <= outer (np.hypot), or, if that holds for fewer than 3 points, inner <=
+    |p - centre|; returns how many are near."""
+    n = points.shape[0]
+    d = np.empty(n)
+    count = 0
+    for i in range(n):
+        d[i] = np.hypot(points[i, 0] - centre_r, points[i, 1] - centre_c)
+        near[i] = d[i] >= inner and d[i] <= outer
+        count += near[i]
+    if count < 3:
+        count = 0
+        for i in range(n):
+            near[i] = d[i] >= inner
+            count += near[i]
+    return count
 
 
 def decide_crossings(image_bgr: np.ndarray, objects: list, width_px: float,
@@ -197,22 +238,32 @@ def _edge_contrasts(image_bgr, centre, directions, wa, wb):
     """(e_a - e_b) / (e_a + e_b) of the occlusion edge strengths of strands a and b (NaN if unknown) in the
     grey image of the (C-contiguous uint8) ``image_bgr``, for each (t_a, t_b) of ``directions`` (all probes in
     one compiled call, :func:`_edge_strength_kernel`)."""
-    n = 2 * len(directions)
-    t_self, t_other = np.empty((n, 2)), np.empty((n, 2))
-    along, across = np.empty(n), np.empty(n)
-    widths = np.empty((n, 2))
-    for k, (ta, tb) in enumerate(directions):
-        for m, (ts, to, ws, wo) in enumerate(((ta, tb, wa, wb), (tb, ta, wb, wa))):
-            ts, to = np.asarray(ts, float), np.asarray(to, float)
-            i = 2 * k + m
-            t_self[i], t_other[i] = ts, to
-            # the dot products as _occlusion_probes takes them (numpy's, bit for bit)
-            along[i], across[i] = float(to @ ts), float(to @ np.array([-ts[1], ts[0]]))
-            widths[i] = ws, wo
-    e = np.empty(n)
-    _edge_strength_kernel(image_bgr, float(centre[0]), float(centre[1]), t_self, along, across, widths, e)
+    pairs = np.array(directions, dtype=np.float64).reshape(-1, 2, 2)      # (k, (t_a, t_b), (row, col))
+    e = np.empty(2 * len(pairs))
+    _edge_strengths_of_pairs(image_bgr, float(centre[0]), float(centre[1]), pairs, float(wa), float(wb), e)
     return [(ea - eb) / (ea + eb) if np.isfinite(ea) and np.isfinite(eb) and ea + eb > 0 else float('nan')
             for ea, eb in zip(e[0::2].tolist(), e[1::2].tolist())]
+
+
+@njit(cache=True, nogil=True)
+def _edge_strengths_of_pairs(bgr, centre_r, centre_c, pairs, wa, wb, out):
+    """out[2 k], out[2 k + 1]: the edge strengths of strand a (direction pairs[k, 0], width wa) against b
+    (pairs[k, 1], wb), and of b against a (:func:`_edge_strength_kernel`); the other strand's direction in
+    the frame (t_self, n = (-t_self_c, t_self_r)) by numpy's (OpenBLAS's) 2-vector dot product, a fused
+    multiply-add (:mod:`.fma`)."""
+    n = 2 * pairs.shape[0]
+    t_self = np.empty((n, 2))
+    along, across = np.empty(n), np.empty(n)
+    widths = np.empty((n, 2))
+    for k in range(pairs.shape[0]):
+        for m in range(2):
+            i = 2 * k + m
+            ts, to = pairs[k, m], pairs[k, 1 - m]
+            t_self[i, 0], t_self[i, 1] = ts[0], ts[1]
+            along[i] = fma64(to[1], ts[1], to[0] * ts[0])
+            across[i] = fma64(to[1], ts[0], to[0] * -ts[1])
+            widths[i, 0], widths[i, 1] = (wa, wb) if m == 0 else (wb, wa)
+    _edge_strength_kernel(bgr, centre_r, centre_c, t_self, along, across, widths, out)
 
 
 @njit(cache=True, nogil=True)
