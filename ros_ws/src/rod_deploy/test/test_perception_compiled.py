@@ -444,3 +444,38 @@ def test_branch_geometry_is_the_numpy_formula():
         i0, d = branch_geometry(p, skip, fit)
         j0, e = _branch_geometry_reference(p, skip, fit)
         assert i0 == j0 and np.array_equal(d, e)
+
+
+def test_colour_cut_is_the_numpy_formula():
+    from rod_deploy.perception.crossing_order import median0
+    from rod_deploy.perception.traversal import _best_colour_cut
+    rng = np.random.default_rng(20)
+    cuts = 0
+    for trial in range(600):
+        n = int(rng.integers(8, 200))
+        win = int(rng.integers(3, 12))
+        a, b = rng.normal(size=2) * 30, rng.normal(size=2) * 30           # two colours, a step somewhere
+        step_at = int(rng.integers(0, n))
+        col = np.where(np.arange(n)[:, None] < step_at, a, b) + rng.normal(size=(n, 2)) * rng.uniform(0.5, 15)
+        col = col.astype(np.float32)
+        idx = np.unique(rng.integers(0, 3 * n, n))
+        if len(idx) < 2 * win:
+            continue
+        col = col[:len(idx)]
+        s = np.cumsum(rng.uniform(0.5, 2.0, 3 * n))
+        min_length, sep = float(rng.uniform(0, s[-1] / 3)), float(rng.uniform(5, 15))
+        # the numpy formula it replaces
+        cc = np.vstack([[0.0, 0.0], np.cumsum(col, axis=0)])
+        k = np.arange(win, len(idx) - win + 1)
+        d = np.linalg.norm((cc[k] - cc[k - win]) / win - (cc[k + win] - cc[k]) / win, axis=1)
+        cut_at = (idx[k - 1] + idx[k]) // 2
+        ok = (s[cut_at] >= min_length) & (s[-1] - s[cut_at] >= min_length)
+        ref = -1
+        if ok.any():
+            j = int(np.argmax(np.where(ok, d, -1.0)))
+            if d[j] >= 2.5 * sep and all(np.mean(np.linalg.norm(part - median0(part), axis=1) < 1.5 * sep) >= 0.8
+                                         for part in (col[:k[j]], col[k[j]:])):
+                ref = int(cut_at[j])
+        assert _best_colour_cut(col, idx.astype(np.int64), s, win, min_length, 2.5 * sep, 1.5 * sep) == ref
+        cuts += ref >= 0
+    assert cuts > 50

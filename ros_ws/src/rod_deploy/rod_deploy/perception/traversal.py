@@ -18,7 +18,7 @@ from numba import njit
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
 from rod_deploy.perception.centreline import arc_length, path_length
-from rod_deploy.perception.crossing_order import median0
+from rod_deploy.perception.crossing_order import _column_medians, median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
 
@@ -378,26 +378,49 @@ def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
     win = max(3, int(round(4 * width_px / step)))
     if len(idx) < 2 * win:
         return None
-    col = colours_at(pts[idx])
-    cc = np.vstack([[0.0, 0.0], np.cumsum(col, axis=0)])
-    k = np.arange(win, len(idx) - win + 1)
-    m1 = (cc[k] - cc[k - win]) / win
-    m2 = (cc[k + win] - cc[k]) / win
-    d = np.linalg.norm(m1 - m2, axis=1)
-    cut_at = (idx[k - 1] + idx[k]) // 2             # between the last sample before and the first after
-    ok = (s[cut_at] >= min_length_px) & (s[-1] - s[cut_at] >= min_length_px)
-    if not ok.any():
-        return None
-    j = int(np.argmax(np.where(ok, d, -1.0)))
-    if d[j] < 2.5 * min_separation:
-        return None
+    col = np.ascontiguousarray(colours_at(pts[idx]), dtype=np.float32)
+    cut = _best_colour_cut(col, np.ascontiguousarray(idx, dtype=np.int64), s, win, float(min_length_px),
+                           2.5 * min_separation, 1.5 * min_separation)
+    return None if cut < 0 else cut
+
+
+@njit(cache=True, nogil=True)
+def _best_colour_cut(col, idx, s, win, min_length_px, min_step, max_spread):
+    """The cut of :func:`_colour_cut` from the float32 colours ``col`` at the samples ``idx`` (arc lengths
+    ``s``), or -1: the mean colours of the ``win`` samples before and after each sample (running float32
+    sums, as np.cumsum, differenced in float64) differ most (Euclidean) where both pieces are at least
+    ``min_length_px`` long; the cut lies between the last sample before and the first after, if that
+    difference is at least ``min_step`` and each piece's colours lie within ``max_spread`` of its median
+    (float32, as numpy compares them) at 80 % of its samples at least."""
+    n = col.shape[0]
+    cc = np.zeros((n + 1, 2))
+    run0, run1 = np.float32(0.0), np.float32(0.0)
+    for i in range(n):
+        run0 += col[i, 0]
+        run1 += col[i, 1]
+        cc[i + 1, 0], cc[i + 1, 1] = run0, run1
+    best_j, best_d, best_cut = -1, -1.0, -1
+    for k in range(win, n - win + 1):
+        d0 = (cc[k, 0] - cc[k - win, 0]) / win - (cc[k + win, 0] - cc[k, 0]) / win
+        d1 = (cc[k, 1] - cc[k - win, 1]) / win - (cc[k + win, 1] - cc[k, 1]) / win
+        d = np.sqrt(d0 * d0 + d1 * d1)
+        cut_at = (idx[k - 1] + idx[k]) // 2
+        if s[cut_at] >= min_length_px and s[s.size - 1] - s[cut_at] >= min_length_px and d > best_d:
+            best_j, best_d, best_cut = k, d, cut_at
+    if best_j < 0 or best_d < min_step:
+        return -1
     # each piece must be one colour along (almost) all its length: not a tangle of several rods
-    split = k[j]
-    for part in (col[:split], col[split:]):
-        spread = np.linalg.norm(part - median0(part), axis=1)
-        if np.mean(spread < 1.5 * min_separation) < 0.8:
-            return None
-    return int(cut_at[j])
+    limit = np.float32(max_spread)
+    median = np.empty(2, np.float32)
+    for lo, hi in ((0, best_j), (best_j, n)):
+        _column_medians(col[lo:hi], median)
+        inside = 0
+        for i in range(lo, hi):
+            x0, x1 = col[i, 0] - median[0], col[i, 1] - median[1]
+            inside += np.sqrt(x0 * x0 + x1 * x1) < limit
+        if inside / (hi - lo) < 0.8:
+            return -1
+    return best_cut
 
 
 def drop_shadow_strands(objects: list, lab_at, half_width_at, min_colour_separation: float,
