@@ -368,14 +368,25 @@ def _turn(ax: float, ay: float, bx: float, by: float) -> float:
 def pair_energy(bi: Branch, bj: Branch) -> float:
     """Discrete bending energy [1/px] of joining branch ``bi`` to branch ``bj`` through the crossing
     (the module docstring's E_ij)."""
-    ti, tj = bi.tangent, bj.tangent
-    cx, cy = float(bj.anchor[0] - bi.anchor[0]), float(bj.anchor[1] - bi.anchor[1])
+    return _pair_energy(_geometry(bi), _geometry(bj))
+
+
+def _geometry(b: Branch) -> tuple:
+    """(anchor row, col, tangent row, col) as plain floats (the energies of all pairs take them many times)."""
+    return (*b.anchor.tolist(), *b.tangent.tolist())
+
+
+def _pair_energy(gi: tuple, gj: tuple) -> float:
+    """:func:`pair_energy` of two branches' :func:`_geometry`."""
+    ai0, ai1, ti0, ti1 = gi
+    aj0, aj1, tj0, tj1 = gj
+    cx, cy = aj0 - ai0, aj1 - ai1
     d = math.hypot(cx, cy)
     if d < 1e-9:
-        phis = [_turn(ti[0], ti[1], -tj[0], -tj[1])]
+        phis = [_turn(ti0, ti1, -tj0, -tj1)]
         d = 1.0
     else:
-        phis = [_turn(ti[0], ti[1], cx, cy), _turn(cx, cy, -tj[0], -tj[1])]
+        phis = [_turn(ti0, ti1, cx, cy), _turn(cx, cy, -tj0, -tj1)]
     return sum((2.0 * math.tan(phi / 2.0)) ** 2 for phi in phis) / d
 
 
@@ -408,8 +419,9 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penal
     if n < 2:
         return [], 0.0
     energy = np.full((n, n), np.inf)
+    geometry = [_geometry(b) for b in branches]
     for i, j in combinations(range(n), 2):
-        e = pair_energy(branches[i], branches[j])
+        e = _pair_energy(geometry[i], geometry[j])
         if colours_differ(branches[i].colour, branches[j].colour, min_colour_separation):
             e += colour_penalty
         if branches[i].edge == branches[j].edge:
