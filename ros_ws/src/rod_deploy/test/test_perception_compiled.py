@@ -479,3 +479,36 @@ def test_colour_cut_is_the_numpy_formula():
         assert _best_colour_cut(col, idx.astype(np.int64), s, win, min_length, 2.5 * sep, 1.5 * sep) == ref
         cuts += ref >= 0
     assert cuts > 50
+
+
+def test_edge_correction_is_the_numpy_formula():
+    from rod_deploy.perception.centreline import _edge_correction
+    rng = np.random.default_rng(21)
+    applied = 0
+    for trial in range(1000):
+        n = int(rng.integers(1, 120))
+        idx = np.arange(0, n, 2)
+        if idx[-1] != n - 1:
+            idx = np.append(idx, n - 1)
+        o_l = rng.normal(-5, rng.uniform(0.1, 3), len(idx))
+        o_r = rng.normal(5, rng.uniform(0.1, 3), len(idx))
+        o_l[rng.random(len(idx)) < rng.uniform(0, 0.5)] = np.nan
+        excluded = rng.random(len(idx)) < rng.uniform(0, 0.5)
+        # the numpy formula it replaces
+        width, centre = o_r - o_l, 0.5 * (o_l + o_r)
+        ok = np.isfinite(width) & ~excluded
+        if ok.sum() >= 3:
+            w_med = float(np.median(width[ok]))
+            ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
+        ref_widths = np.full(n, np.nan)
+        ref_widths[idx[ok]] = width[ok]
+        delta, widths = np.empty(n), np.empty(n)
+        w_obj = _edge_correction(idx, o_l, o_r, excluded, delta, widths)
+        assert np.array_equal(widths, ref_widths, equal_nan=True)
+        if ok.sum() >= 3:
+            assert w_obj == float(np.median(width[ok]))
+            assert np.array_equal(delta, np.interp(np.arange(n), idx[ok], centre[ok]))
+            applied += 1
+        else:
+            assert np.isnan(w_obj)
+    assert applied > 300

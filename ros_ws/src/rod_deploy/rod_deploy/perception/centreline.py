@@ -485,28 +485,68 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     half_span = 0.8 * approx_width_px + 3.0
     prof, offsets = edge_profiles(evidence, pts[idx], normals[idx], half_span)
     o_l, o_r = edge_positions(prof, offsets, floor, core_px=0.5 * approx_width_px + 1.0)
-    width = o_r - o_l
-    centre = 0.5 * (o_l + o_r)
-    ok = np.isfinite(width)
-    if exclude is not None:
-        ok &= ~exclude(pts[idx])
-    if ok.sum() >= 3:
-        w_med = float(_median(width[ok]))
-        ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
-    widths = np.full(len(pts), np.nan)
-    widths[idx[ok]] = width[ok]
-    if ok.sum() >= 3:
-        i = np.arange(len(pts))
-        delta = np.interp(i, idx[ok], centre[ok])
+    excluded = exclude(pts[idx]) if exclude is not None else np.zeros(len(idx), np.bool_)
+    delta, widths = np.empty(len(pts)), np.empty(len(pts))
+    w_obj = _edge_correction(idx, o_l, o_r, np.ascontiguousarray(excluded, dtype=np.bool_), delta, widths)
+    if np.isfinite(w_obj):
         delta = gaussian_filter(delta, 2.0, wrap=closed)
         pts = pts + delta[:, None] * normals
-        w_obj = float(_median(width[ok]))
-    else:
-        w_obj = float('nan')
     pts = smooth(pts, sigma_px, closed)
     if closed:
         pts[-1] = pts[0]
     return RefinedPath(pts, w_obj, closed, widths)
+
+
+@njit(cache=True, nogil=True)
+def _edge_correction(idx, o_l, o_r, excluded, delta, widths):
+    """The edge-centred correction of :func:`refine` from the edges ``o_l``, ``o_r`` found at the path points
+    ``idx``: a point counts where both edges are found, it is not ``excluded``, and (with 3 such points
+    or more) its width lies within 0.6-1.4 of their median and its centre offset within 0.35 of it + 1 px.
+    ``widths`` (per path point): the width where it counts, else nan; ``delta``: the centre offsets
+    interpolated along the path (np.interp's arithmetic: slope (x - x_j) + y_j, the end values beyond) if 3
+    or more count. Returns the median width of those (np.median), nan if fewer than 3 count."""
+    m = idx.size
+    width = o_r - o_l
+    centre = 0.5 * (o_l + o_r)
+    ok = np.empty(m, np.bool_)
+    for k in range(m):
+        ok[k] = np.isfinite(width[k]) and not excluded[k]
+    if ok.sum() >= 3:
+        w_med = _sorted_median(width[ok])
+        for k in range(m):
+            ok[k] = ok[k] and width[k] > 0.6 * w_med and width[k] < 1.4 * w_med and \
+                abs(centre[k]) < 0.35 * w_med + 1.0
+    widths[:] = np.nan
+    for k in range(m):
+        if ok[k]:
+            widths[idx[k]] = width[k]
+    if ok.sum() < 3:
+        return np.nan
+    xp = idx[ok].astype(np.float64)
+    fp = centre[ok]
+    last = xp.size - 1
+    j = 0
+    for i in range(delta.size):
+        x = np.float64(i)
+        while j < last and xp[j + 1] <= x:
+            j += 1
+        if x < xp[0]:
+            delta[i] = fp[0]
+        elif x > xp[last]:
+            delta[i] = fp[last]
+        elif j == last or xp[j] == x:
+            delta[i] = fp[j]
+        else:
+            delta[i] = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]) * (x - xp[j]) + fp[j]
+    return _sorted_median(width[ok])
+
+
+@njit(cache=True, nogil=True)
+def _sorted_median(values):
+    """np.median of a 1-D float64 array without nan."""
+    s = np.sort(values)
+    h = s.size // 2
+    return s[h] if s.size % 2 else (s[h - 1] + s[h]) / 2
 
 
 def _median(values: np.ndarray):
