@@ -512,3 +512,43 @@ def test_edge_correction_is_the_numpy_formula():
         else:
             assert np.isnan(w_obj)
     assert applied > 300
+
+
+def test_foreign_end_trimming_is_the_numpy_formula():
+    from rod_deploy.perception.crossing_order import median0
+    from rod_deploy.perception.traversal import TracedObject, trim_foreign_ends
+    rng = np.random.default_rng(22)
+    trimmed = 0
+    for trial in range(400):
+        n = int(rng.integers(8, 300))
+        pts = np.cumsum(rng.uniform(0.5, 1.5, (n, 2)), axis=0)
+        passes = [(0, int(a), int(a) + 5) for a in rng.integers(0, n - 5, int(rng.integers(0, 3)))]
+        colours = rng.normal(size=(n, 2)).astype(np.float32) * 3
+        for end in (slice(0, int(rng.integers(0, 30))), slice(n - int(rng.integers(0, 30)), n)):
+            colours[end] += np.float32(rng.uniform(0, 80))                     # foreign ends, sometimes
+        table = {tuple(p): c for p, c in zip(pts.tolist(), colours)}
+
+        def colours_at(points):
+            return np.array([table[tuple(p)] for p in points.tolist()], np.float32)
+        w, sep = float(rng.uniform(1, 6)), 12.0
+        out = trim_foreign_ends(TracedObject(pts, False, passes), colours_at, w, sep)
+        # the numpy formula it replaces
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        reach = 4.0 * w
+        lo, hi = 0, n - 1
+        if s[-1] >= 4 * reach:
+            body = np.flatnonzero((s > reach) & (s < s[-1] - reach))[::max(1, int(0.5 * w))]
+            first = min((a for _, a, _ in passes), default=n)
+            last = max((b for _, _, b in passes), default=-1)
+            head = np.flatnonzero((s <= reach) & (np.arange(n) < first))
+            tail = np.flatnonzero((s >= s[-1] - reach) & (np.arange(n) > last))
+            col = colours_at(pts[np.concatenate([body, head, tail])])
+            foreign = np.linalg.norm(col[len(body):] - median0(col[:len(body)]), axis=1) > 2.5 * sep
+            fh, ft = foreign[:len(head)], foreign[len(head):][::-1]
+            k = np.flatnonzero(fh & (np.cumsum(fh) / np.arange(1, len(fh) + 1) >= 0.5))
+            lo = int(head[k[-1]]) + 1 if len(k) else 0
+            k = np.flatnonzero(ft & (np.cumsum(ft) / np.arange(1, len(ft) + 1) >= 0.5))
+            hi = int(tail[::-1][k[-1]]) - 1 if len(k) else n - 1
+        assert np.array_equal(out.points, pts[lo:hi + 1])
+        trimmed += (lo, hi) != (0, n - 1)
+    assert trimmed > 100

@@ -335,30 +335,75 @@ def trim_foreign_ends(o, colours_at, width_px: float, min_separation: float, rea
     reach = reach_factor * width_px
     if s[-1] < 4 * reach:
         return o
-    body = np.flatnonzero((s > reach) & (s < s[-1] - reach))[::max(1, int(0.5 * width_px))]
     first_pass = min((i0 for _, i0, _ in o.passes), default=len(pts))
     last_pass = max((i1 for _, _, i1 in o.passes), default=-1)
-    head = np.flatnonzero((s <= reach) & (np.arange(len(pts)) < first_pass))
-    tail = np.flatnonzero((s >= s[-1] - reach) & (np.arange(len(pts)) > last_pass))
-    col = colours_at(pts[np.concatenate([body, head, tail])])
-    own = median0(col[:len(body)])
-    foreign = np.linalg.norm(col[len(body):] - own, axis=1) > foreign_factor * min_separation
-    lo, hi = 0, len(pts) - 1
-    fh, ft = foreign[:len(head)], foreign[len(head):]
-    if fh.any():                                        # head: indices from the end inwards
-        frac = np.cumsum(fh) / np.arange(1, len(fh) + 1)
-        k = np.flatnonzero(fh & (frac >= min_foreign_fraction))
-        if len(k):
-            lo = int(head[k[-1]]) + 1
-    if ft.any():
-        ft_rev = ft[::-1]
-        frac = np.cumsum(ft_rev) / np.arange(1, len(ft_rev) + 1)
-        k = np.flatnonzero(ft_rev & (frac >= min_foreign_fraction))
-        if len(k):
-            hi = int(tail[::-1][k[-1]]) - 1
+    samples, n_body, n_head = _end_samples(s, reach, max(1, int(0.5 * width_px)), first_pass, last_pass)
+    col = np.ascontiguousarray(colours_at(pts[samples]), dtype=np.float32)
+    lo, hi = _foreign_ends(col, samples, n_body, n_head, len(pts), foreign_factor * min_separation,
+                           min_foreign_fraction)
     if lo == 0 and hi == len(pts) - 1:
         return o
     return TracedObject(pts[lo:hi + 1].copy(), False, [(c, i0 - lo, i1 - lo) for c, i0, i1 in o.passes])
+
+
+@njit(cache=True, nogil=True)
+def _end_samples(s, reach, step, first_pass, last_pass):
+    """(indices, n_body, n_head) for :func:`trim_foreign_ends`: every ``step``-th point of the body (arc
+    length ``s`` more than ``reach`` from both ends), then the head's points (within ``reach`` of the start,
+    before the first pass), then the tail's (within ``reach`` of the end, after the last pass)."""
+    n = s.size
+    end = s[n - 1]
+    out = np.empty(n, np.int64)
+    m = 0
+    seen = 0
+    for i in range(n):
+        if s[i] > reach and s[i] < end - reach:
+            if seen % step == 0:
+                out[m] = i
+                m += 1
+            seen += 1
+    n_body = m
+    for i in range(min(n, first_pass)):
+        if s[i] <= reach:
+            out[m] = i
+            m += 1
+    n_head = m - n_body
+    for i in range(max(last_pass + 1, 0), n):
+        if s[i] >= end - reach:
+            out[m] = i
+            m += 1
+    return out[:m].copy(), n_body, n_head
+
+
+@njit(cache=True, nogil=True)
+def _foreign_ends(col, samples, n_body, n_head, n, limit, min_fraction):
+    """(lo, hi): the kept index range of :func:`trim_foreign_ends` from the float32 colours ``col`` at
+    :func:`_end_samples`: foreign where farther than ``limit`` (float32) from the body's median colour; from
+    each end inwards, the farthest foreign sample where the foreign fraction so far is at least
+    ``min_fraction`` is cut off with everything outside it."""
+    lo, hi = 0, n - 1
+    if n_body == 0:                              # no own colour (numpy's median: nan, nothing foreign)
+        return lo, hi
+    median = np.empty(2, np.float32)
+    _column_medians(col[:n_body], median)
+    bound = np.float32(limit)
+    foreign = 0
+    for k in range(n_head):                      # head: from the start inwards
+        x0, x1 = col[n_body + k, 0] - median[0], col[n_body + k, 1] - median[1]
+        if np.sqrt(x0 * x0 + x1 * x1) > bound:
+            foreign += 1
+            if foreign / (k + 1) >= min_fraction:
+                lo = samples[n_body + k] + 1
+    n_tail = samples.size - n_body - n_head
+    foreign = 0
+    for k in range(n_tail):                      # tail: from the end inwards
+        i = samples.size - 1 - k
+        x0, x1 = col[i, 0] - median[0], col[i, 1] - median[1]
+        if np.sqrt(x0 * x0 + x1 * x1) > bound:
+            foreign += 1
+            if foreign / (k + 1) >= min_fraction:
+                hi = samples[i] - 1
+    return lo, hi
 
 
 def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
