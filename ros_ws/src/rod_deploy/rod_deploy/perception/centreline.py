@@ -297,12 +297,13 @@ def _bilinear(image, r, c):
 def _end_target(evidence, end, t, steps, floor, half_width_px):
     """(found, target): where the end at ``end`` (row, col) should go along the unit tangent ``t``, as an
     offset [px] along it. The evidence is sampled (:func:`_bilinear`) at ``end + steps t``; the boundary is
-    the first sample inside the image (the ray may enter it late) below 15 % of the peak (the largest of the first 8 samples; at least
-    ``floor`` / 2): at the first sample, the end is already outside (target 0); else the steepest fall
-    (central differences) from one step before the first sample below 60 % of the peak (at least ``floor``)
-    to one step past it, refined by a parabola, and the target is half a width inside it. No sample below
-    15 % but the ray leaves the image: the last step inside. Neither: not found. Float32 samples compared
-    with float32 levels, as numpy compares them with Python floats."""
+    the first sample inside the image (the ray may enter it late) below 15 % of the peak (the largest of
+    the first 8 samples; the level at least ``floor`` / 2): at the first sample, the end is already
+    outside (target 0); else the steepest fall (central differences) from one step before the first sample
+    below 60 % of the peak (at least ``floor``) to one step past the boundary, refined by a parabola, and
+    the target is half a width inside it. No such sample but the ray leaves the image: the step before the
+    first sample outside it. Neither: not found. Float32 samples compared with float32 levels, as numpy
+    compares them with Python floats."""
     h, w = evidence.shape
     n = steps.size
     vals = np.empty(n, np.float32)

@@ -217,7 +217,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     for obj in traced:
         if config.refine:
             refined = cl.refine(obj.points, obj.closed, evidence, w, floor,
-                                exclude=lambda p: _in_zones(p, zone_centres, zone_radii), sigma_px=config.smoothing_sigma_px)
+                                exclude=lambda p: _in_zones(p, zone_centres, zone_radii),
+                                sigma_px=config.smoothing_sigma_px)
             width = refined.width_px if np.isfinite(refined.width_px) else w
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
