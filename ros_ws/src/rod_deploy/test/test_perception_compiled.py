@@ -33,18 +33,36 @@ def test_compiled_edge_contrasts_equal_the_numpy_probes():
     finite = 0
     for trial in range(400):
         h, w = rng.integers(80, 240, 2)
-        grey = rng.integers(0, 256, (h, w)).astype(np.uint8)
+        bgr = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)
+        grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
         centre = rng.uniform([0, 0], [h, w]) if trial % 4 == 0 else rng.uniform([35, 35], [h - 35, w - 35])
         a = rng.uniform(0, 2 * np.pi)
         b = a + rng.uniform(0.05, np.pi)
         dirs = _perturbed_directions(np.array([np.cos(a), np.sin(a)]), np.array([np.cos(b), np.sin(b)]),
                                      np.radians(8.0))
         wa, wb = rng.uniform(1, 22, 2)
-        new = _edge_contrasts(grey, centre, dirs, wa, wb)
+        new = _edge_contrasts(bgr, centre, dirs, wa, wb)                # grey converted per probed pixel
         ref = _reference_contrasts(grey, centre, dirs, wa, wb)
         assert np.array_equal(np.array(new), np.array(ref), equal_nan=True)
         finite += int(np.isfinite(new).sum())
     assert finite > 1000          # most probe sets lie inside the image
+
+
+def test_probe_grey_is_opencvs_on_every_colour():
+    from numba import njit
+
+    from rod_deploy.perception.crossing_order import _grey
+
+    @njit(cache=False)
+    def grey_image(bgr):
+        out = np.empty(bgr.shape[:2], np.uint8)
+        for r in range(bgr.shape[0]):
+            for c in range(bgr.shape[1]):
+                out[r, c] = _grey(bgr, r, c)
+        return out
+    levels = np.arange(256, dtype=np.uint8)
+    every = np.stack(np.meshgrid(levels, levels, levels, indexing='ij'), axis=-1).reshape(4096, 4096, 3)
+    assert np.array_equal(grey_image(every), cv2.cvtColor(every, cv2.COLOR_BGR2GRAY))
 
 
 def test_distance_map_equals_opencv_on_the_whole_image():
@@ -88,9 +106,28 @@ def test_medians_are_numpys():
                                                                 np.round(pts[:, 1]).astype(int)]))
 
 
+def test_column_medians_are_numpys():
+    from rod_deploy.perception.crossing_order import _strand_points, median0
+    rng = np.random.default_rng(19)
+    for n in range(1, 80):
+        for shape in ((n,), (n, 2), (n, 3)):
+            v = (rng.normal(size=shape) * 40).astype(np.float32)
+            if n % 3 == 0:
+                v = np.round(v)                                   # ties
+            ref = np.median(v, axis=0)
+            out = median0(v)
+            assert np.asarray(out).dtype == ref.dtype and np.array_equal(out, ref)
+        pts = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 2
+        centre, w = rng.normal(size=2) * 5, rng.uniform(1, 6)
+        d = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1])
+        near = (d >= 1.5 * w) & (d <= 3.5 * w)
+        near = near if near.sum() >= 3 else d >= 1.5 * w
+        assert np.array_equal(_strand_points(pts, 0, n - 1, centre, w), pts[near] if near.sum() >= 3 else pts[:0])
+
+
 def test_colour_sample_and_lookup_are_the_numpy_gathers():
     from rod_deploy.perception.crossing_order import _sample
-    from rod_deploy.perception.pipeline import _lookup
+    from rod_deploy.perception.centreline import lookup
     rng = np.random.default_rng(4)
     for trial in range(100):
         h, w = rng.integers(3, 60, 2)
@@ -107,7 +144,7 @@ def test_colour_sample_and_lookup_are_the_numpy_gathers():
         for image in (img[:, :, 0].copy(), img[:, :, 1] > 128, rng.random((h, w)).astype(np.float32)):
             p = np.round(pts).astype(int)
             ref = image[np.clip(p[:, 0], 0, h - 1), np.clip(p[:, 1], 0, w - 1)]
-            new = _lookup(image, pts)
+            new = lookup(image, pts)
             assert new.dtype == ref.dtype and np.array_equal(new, ref)
 
 
@@ -133,19 +170,187 @@ def test_arc_length_and_resample_are_the_numpy_formulas():
         assert out.shape == ref.shape and np.array_equal(out, ref)
 
 
-def test_profile_maps_are_the_numpy_broadcasts():
-    from rod_deploy.perception.centreline import _profile_maps
+def test_edge_profiles_are_the_remap_of_the_numpy_maps():
+    from rod_deploy.perception.centreline import _bilinear, edge_profiles
     rng = np.random.default_rng(8)
-    for trial in range(50):
-        n = int(rng.integers(1, 300))
-        pts = rng.uniform(0, 900, (n, 2))
+    for trial in range(200):
+        h, w = rng.integers(2, 120, 2)
+        image = rng.integers(0, 256, (h, w)).astype(np.uint8)
+        n = int(rng.integers(1, 120))
+        pts = rng.uniform(-4, [h + 3, w + 3], (n, 2))        # some samples beyond the border (replicated)
+        if trial % 4 == 0:
+            pts = np.round(pts * 4) / 4                      # samples on and between pixel centres
         a = rng.uniform(0, 2 * np.pi, n)
         normals = np.stack([np.cos(a), np.sin(a)], axis=1)
         half = rng.uniform(2, 20)
-        offsets = np.arange(-half, half + 1e-9, 0.5)
-        cols, rows = _profile_maps(pts, normals, offsets)
-        assert np.array_equal(rows, (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32))
-        assert np.array_equal(cols, (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32))
+        prof, offsets = edge_profiles(image.astype(np.float32), pts, normals, half)
+        rows = (pts[:, 0:1] + offsets[None, :] * normals[:, 0:1]).astype(np.float32)
+        cols = (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32)
+        ref = cv2.remap(image.astype(np.float32), cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        assert prof.dtype == np.float32 and np.array_equal(prof, ref)
+        # the compiled bilinear sample (end placement) is remap's, on uint8 and float32 images
+        for i, j in zip(rng.integers(0, n, 20), rng.integers(0, len(offsets), 20)):
+            for img in (image, image.astype(np.float32)):
+                assert _bilinear(img, rows[i, j], cols[i, j]) == ref[i, j]
+
+
+def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):
+    """The numpy / cv2.remap end placement that the compiled ray search (_end_target) replaces."""
+    from rod_deploy.perception.centreline import arc_length
+    h, w = evidence.shape
+    for end in (0, 1):
+        p = pts if end == 1 else pts[::-1]
+        s = arc_length(p)
+        trim = min(0.6 * half_width_px * 2.0, 0.25 * s[-1])
+        keep = max(int(np.searchsorted(s, s[-1] - trim, side='right')), 2)
+        p, s = p[:keep], s[:keep]
+        j = min(max(int(np.searchsorted(s, s[-1] - tangent_px)), 0), len(p) - 2)
+        t = p[-1] - p[j]
+        nt = np.linalg.norm(t)
+        if nt < 1e-9:
+            continue
+        t /= nt
+        steps = np.arange(0.0, trim + 2.0 * half_width_px + 4.0 + 1e-9, 0.25)
+        ray = p[-1][None, :] + steps[:, None] * t[None, :]
+        inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
+        vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
+                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
+        peak = float(vals[:8].max())
+        below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
+        if below.any():
+            k15 = int(np.argmax(below))
+            if k15 == 0:
+                target = 0.0
+            else:
+                k60 = int(np.argmax(np.append(vals[:k15] < max(0.6 * peak, floor), True)))
+                g = -np.gradient(vals)
+                lo, hi = max(k60 - 1, 0), min(k15 + 1, len(vals) - 1)
+                k = lo + int(np.argmax(g[lo:hi + 1]))
+                a, b, c = g[max(k - 1, 0)], g[k], g[min(k + 1, len(g) - 1)]
+                denom = a - 2 * b + c
+                d = np.clip(np.where(np.abs(denom) > 1e-9, 0.5 * (a - c) / denom if denom else 0.0, 0.0), -0.5, 0.5)
+                target = steps[k] + 0.25 * d - half_width_px
+        elif not inside.all():
+            target = steps[int(np.argmin(inside)) - 1]
+        else:
+            continue
+        if target > 0.5:
+            extra = np.arange(1.0, target + 1e-9, 1.0)
+            if extra.size == 0 or extra[-1] < target - 1e-6:
+                extra = np.append(extra, target)
+            p = np.vstack([p, p[-1] + extra[:, None] * t[None, :]])
+        elif target < -0.5:
+            cut = min(-target, 0.5 * half_width_px + 1.0, 0.3 * s[-1])
+            last = np.interp(s[-1] - cut, s, np.arange(len(p)))
+            i0 = int(np.floor(last))
+            q = p[i0] + (last - i0) * (p[min(i0 + 1, len(p) - 1)] - p[i0])
+            p = np.vstack([p[s <= s[-1] - cut], q[None]])
+        pts = p if end == 1 else p[::-1]
+    return pts
+
+
+def test_end_placement_is_the_numpy_ray_search():
+    from rod_deploy.perception.centreline import RefinedPath, place_ends
+    rng = np.random.default_rng(13)
+    moved = 0
+    for trial in range(300):
+        h, w = rng.integers(40, 160, 2)
+        evidence = np.zeros((h, w), np.uint8)
+        a, b = rng.uniform(-10, [h + 10, w + 10], (2, 2))
+        width = int(rng.integers(3, 15))
+        cv2.line(evidence, (int(a[1]), int(a[0])), (int(b[1]), int(b[0])), int(rng.integers(40, 255)), width)
+        evidence = cv2.GaussianBlur(evidence, (5, 5), 1.0)
+        if trial % 3 == 0:
+            evidence = cv2.add(evidence, rng.integers(0, 30, (h, w)).astype(np.uint8))
+        n = int(rng.integers(3, 80))
+        shrink = rng.uniform(0, 0.3)
+        pts = a + np.linspace(shrink, 1 - shrink, n)[:, None] * (b - a) + rng.normal(0, 0.3, (n, 2))
+        floor, half = float(rng.uniform(5, 30)), 0.5 * width
+        out = place_ends(RefinedPath(pts.copy(), float(width), False, np.full(n, np.nan)), evidence, floor, half,
+                         max(4.0, width)).points
+        ref = _place_end_reference(pts.copy(), evidence.astype(np.float32), floor, half, max(4.0, width))
+        assert out.shape == ref.shape and np.array_equal(out, ref)
+        moved += not np.array_equal(out, pts)
+    assert moved > 200
+
+
+def test_smoothing_and_tangents_are_the_numpy_formulas():
+    from scipy.ndimage import gaussian_filter1d
+
+    from rod_deploy.perception.centreline import smooth, tangents
+    rng = np.random.default_rng(14)
+    for trial in range(600):
+        n = int(rng.integers(2, 90))
+        p = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 3 + 100
+        if trial % 5 == 0:
+            p[1:3] = p[0]                                    # repeated points: zero tangents
+        closed = bool(trial % 2) and n > 3
+        if closed:
+            p[-1] = p[0]
+        sigma = float(rng.choice([1.0, 1.5, 2.0, rng.uniform(0.5, 4)]))
+        if n < 3:
+            ref = p.copy()
+        elif closed:
+            out = gaussian_filter1d(p[:-1], sigma, axis=0, mode='wrap')
+            ref = np.vstack([out, out[:1]])
+        else:
+            pad = min(n - 1, int(np.ceil(4 * sigma)))
+            ext = np.vstack([2 * p[0] - p[pad:0:-1], p, 2 * p[-1] - p[-2:-pad - 2:-1]])
+            ref = gaussian_filter1d(ext, sigma, axis=0, mode='nearest')[pad:pad + n]
+        assert np.array_equal(smooth(p, sigma, closed), ref)
+        if closed:
+            t = np.roll(p[:-1], -1, axis=0) - np.roll(p[:-1], 1, axis=0)
+            t = np.vstack([t, t[:1]])
+        else:
+            t = np.gradient(p, axis=0)
+        norm = np.linalg.norm(t, axis=1, keepdims=True)
+        norm[norm == 0] = 1.0
+        assert np.array_equal(tangents(p, closed), t / norm)
+
+
+def test_lab_conversion_of_a_row_is_that_of_a_column():
+    from rod_deploy.perception.crossing_order import _lab
+    rng = np.random.default_rng(15)
+    for trial in range(300):
+        n = int(rng.integers(1, 2000))
+        px = rng.integers(0, 9 * 255 + 1, (n, 3)).astype(np.float32) / np.float32(9.0)   # 3x3 means, as sampled
+        ref = cv2.cvtColor(px.reshape(-1, 1, 3) / 255.0, cv2.COLOR_BGR2Lab).reshape(-1, 3)
+        assert np.array_equal(_lab(px), ref)
+
+
+def test_background_medians_and_otsu_are_the_numpy_formulas():
+    from rod_deploy.perception.segmentation import _channel_medians, _otsu
+    rng = np.random.default_rng(16)
+    for trial in range(500):
+        n = int(rng.integers(1, 400))
+        px = (rng.integers(0, 256, (n, 3)) if trial % 2 else rng.integers(100, 104, (n, 3))).astype(np.uint8)
+        median = np.empty(3)
+        spread = _channel_medians(px, median)
+        ref = np.median(px, axis=0)
+        assert np.array_equal(median, ref) and spread == np.abs(px - ref).max()
+        hist = rng.integers(0, 10 ** int(rng.integers(1, 6)), 256).astype(float)
+        hist[rng.random(256) < rng.uniform(0, 1)] = 0
+        p = hist / max(hist.sum(), 1.0)
+        omega, mu = np.cumsum(p), np.cumsum(p * np.arange(256))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            between = (mu[-1] * omega - mu) ** 2 / (omega * (1.0 - omega))
+        between[~np.isfinite(between)] = -1.0
+        assert _otsu(hist) == float(np.argmax(between))
+
+
+def test_zones_are_the_numpy_discs():
+    from rod_deploy.perception.pipeline import _in_zones
+    rng = np.random.default_rng(17)
+    for trial in range(200):
+        pts = rng.uniform(0, 100, (int(rng.integers(6, 300)), 2))
+        k = int(rng.integers(0, 6))
+        centres, radii = rng.uniform(0, 100, (k, 2)), rng.uniform(0, 30, k)
+        if k:
+            pts[:k] = centres + radii[:, None] * np.array([0.6, 0.8])    # on a circle: hypot == radius
+        ref = np.zeros(len(pts), bool)
+        for c, r in zip(centres, radii):
+            ref |= np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) <= r
+        assert np.array_equal(_in_zones(pts, centres.reshape(-1, 2), radii), ref)
 
 
 def test_hermite_connector_is_the_numpy_formula():
@@ -194,3 +399,156 @@ def test_one_colour_evidence_is_the_table_difference():
         grey = img.astype(np.int64) - np.array([round(v) for v in background])
         for method, ref in (('contrast', np.abs(grey)), ('dark', np.maximum(-grey, 0)), ('bright', np.maximum(grey, 0))):
             assert np.array_equal(foreground_evidence(img, background, method), ref.max(axis=2).astype(np.uint8))
+
+
+def _branch_geometry_reference(points, skip_px, fit_px, max_fraction=0.45):
+    """The numpy branch geometry that the compiled one replaces."""
+    import math
+
+    from rod_deploy.perception.centreline import arc_length
+    points = points[:int(2 * (skip_px + fit_px)) + 3]
+    s = arc_length(points)
+    skip = min(skip_px, max_fraction * s[-1])
+    i0 = min(int(s.searchsorted(skip)), len(points) - 1)
+    i1 = min(max(int(s.searchsorted(s[i0] + fit_px)), i0 + 1), len(points) - 1)
+    if i1 <= i0:
+        i0 = max(0, len(points) - 1)
+        d = points[0] - points[-1] if len(points) > 1 else np.array([0.0, 1.0])
+        norm = np.linalg.norm(d)
+        return i0, (d / norm if norm > 0 else np.array([0.0, 1.0]))
+    section = points[i0:i1 + 1]
+    centred = section - section.mean(axis=0)
+    (a, b), (_, c) = (centred.T @ centred).tolist()
+    if b == 0.0:
+        d = np.array([1.0, 0.0]) if a > c else np.array([0.0, 1.0])
+    else:
+        theta = 0.5 * math.atan2(2.0 * b, a - c)
+        d = np.array([math.cos(theta), math.sin(theta)])
+    return i0, (-d if np.dot(d, points[i0] - points[i1]) < 0 else d)
+
+
+def test_branch_geometry_is_the_numpy_formula():
+    """Bit for bit: the compiled scatter and dot products reproduce this machine's numpy / OpenBLAS (running
+    fused multiply-adds); on a BLAS that sums otherwise this test tells, the pipeline still works."""
+    from rod_deploy.perception.bending_energy_pairing import branch_geometry
+    rng = np.random.default_rng(18)
+    for trial in range(5000):
+        n = int(rng.integers(1, 60))
+        if trial % 2:
+            p = np.cumsum(rng.choice([-1.0, 0.0, 1.0], (n, 2)), axis=0) + rng.integers(0, 500, 2)   # pixel chains
+        else:
+            p = np.cumsum(rng.normal(size=(n, 2)), axis=0) + 300
+        if trial % 7 == 0:
+            p[:] = p[0]
+        skip, fit = rng.uniform(0, 15), rng.uniform(1, 15)
+        i0, d = branch_geometry(p, skip, fit)
+        j0, e = _branch_geometry_reference(p, skip, fit)
+        assert i0 == j0 and np.array_equal(d, e)
+
+
+def test_colour_cut_is_the_numpy_formula():
+    from rod_deploy.perception.crossing_order import median0
+    from rod_deploy.perception.traversal import _best_colour_cut
+    rng = np.random.default_rng(20)
+    cuts = 0
+    for trial in range(600):
+        n = int(rng.integers(8, 200))
+        win = int(rng.integers(3, 12))
+        a, b = rng.normal(size=2) * 30, rng.normal(size=2) * 30           # two colours, a step somewhere
+        step_at = int(rng.integers(0, n))
+        col = np.where(np.arange(n)[:, None] < step_at, a, b) + rng.normal(size=(n, 2)) * rng.uniform(0.5, 15)
+        col = col.astype(np.float32)
+        idx = np.unique(rng.integers(0, 3 * n, n))
+        if len(idx) < 2 * win:
+            continue
+        col = col[:len(idx)]
+        s = np.cumsum(rng.uniform(0.5, 2.0, 3 * n))
+        min_length, sep = float(rng.uniform(0, s[-1] / 3)), float(rng.uniform(5, 15))
+        # the numpy formula it replaces
+        cc = np.vstack([[0.0, 0.0], np.cumsum(col, axis=0)])
+        k = np.arange(win, len(idx) - win + 1)
+        d = np.linalg.norm((cc[k] - cc[k - win]) / win - (cc[k + win] - cc[k]) / win, axis=1)
+        cut_at = (idx[k - 1] + idx[k]) // 2
+        ok = (s[cut_at] >= min_length) & (s[-1] - s[cut_at] >= min_length)
+        ref = -1
+        if ok.any():
+            j = int(np.argmax(np.where(ok, d, -1.0)))
+            if d[j] >= 2.5 * sep and all(np.mean(np.linalg.norm(part - median0(part), axis=1) < 1.5 * sep) >= 0.8
+                                         for part in (col[:k[j]], col[k[j]:])):
+                ref = int(cut_at[j])
+        assert _best_colour_cut(col, idx.astype(np.int64), s, win, min_length, 2.5 * sep, 1.5 * sep) == ref
+        cuts += ref >= 0
+    assert cuts > 50
+
+
+def test_edge_correction_is_the_numpy_formula():
+    from rod_deploy.perception.centreline import _edge_correction
+    rng = np.random.default_rng(21)
+    applied = 0
+    for trial in range(1000):
+        n = int(rng.integers(1, 120))
+        idx = np.arange(0, n, 2)
+        if idx[-1] != n - 1:
+            idx = np.append(idx, n - 1)
+        o_l = rng.normal(-5, rng.uniform(0.1, 3), len(idx))
+        o_r = rng.normal(5, rng.uniform(0.1, 3), len(idx))
+        o_l[rng.random(len(idx)) < rng.uniform(0, 0.5)] = np.nan
+        excluded = rng.random(len(idx)) < rng.uniform(0, 0.5)
+        # the numpy formula it replaces
+        width, centre = o_r - o_l, 0.5 * (o_l + o_r)
+        ok = np.isfinite(width) & ~excluded
+        if ok.sum() >= 3:
+            w_med = float(np.median(width[ok]))
+            ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
+        ref_widths = np.full(n, np.nan)
+        ref_widths[idx[ok]] = width[ok]
+        delta, widths = np.empty(n), np.empty(n)
+        w_obj = _edge_correction(idx, o_l, o_r, excluded, delta, widths)
+        assert np.array_equal(widths, ref_widths, equal_nan=True)
+        if ok.sum() >= 3:
+            assert w_obj == float(np.median(width[ok]))
+            assert np.array_equal(delta, np.interp(np.arange(n), idx[ok], centre[ok]))
+            applied += 1
+        else:
+            assert np.isnan(w_obj)
+    assert applied > 300
+
+
+def test_foreign_end_trimming_is_the_numpy_formula():
+    from rod_deploy.perception.crossing_order import median0
+    from rod_deploy.perception.traversal import TracedObject, trim_foreign_ends
+    rng = np.random.default_rng(22)
+    trimmed = 0
+    for trial in range(400):
+        n = int(rng.integers(8, 300))
+        pts = np.cumsum(rng.uniform(0.5, 1.5, (n, 2)), axis=0)
+        passes = [(0, int(a), int(a) + 5) for a in rng.integers(0, n - 5, int(rng.integers(0, 3)))]
+        colours = rng.normal(size=(n, 2)).astype(np.float32) * 3
+        for end in (slice(0, int(rng.integers(0, 30))), slice(n - int(rng.integers(0, 30)), n)):
+            colours[end] += np.float32(rng.uniform(0, 80))                     # foreign ends, sometimes
+        table = {tuple(p): c for p, c in zip(pts.tolist(), colours)}
+
+        def colours_at(points):
+            return np.array([table[tuple(p)] for p in points.tolist()], np.float32)
+        w, sep = float(rng.uniform(1, 6)), 12.0
+        out = trim_foreign_ends(TracedObject(pts, False, passes), colours_at, w, sep)
+        # the numpy formula it replaces
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        reach = 4.0 * w
+        lo, hi = 0, n - 1
+        if s[-1] >= 4 * reach:
+            body = np.flatnonzero((s > reach) & (s < s[-1] - reach))[::max(1, int(0.5 * w))]
+            first = min((a for _, a, _ in passes), default=n)
+            last = max((b for _, _, b in passes), default=-1)
+            head = np.flatnonzero((s <= reach) & (np.arange(n) < first))
+            tail = np.flatnonzero((s >= s[-1] - reach) & (np.arange(n) > last))
+            col = colours_at(pts[np.concatenate([body, head, tail])])
+            foreign = np.linalg.norm(col[len(body):] - median0(col[:len(body)]), axis=1) > 2.5 * sep
+            fh, ft = foreign[:len(head)], foreign[len(head):][::-1]
+            k = np.flatnonzero(fh & (np.cumsum(fh) / np.arange(1, len(fh) + 1) >= 0.5))
+            lo = int(head[k[-1]]) + 1 if len(k) else 0
+            k = np.flatnonzero(ft & (np.cumsum(ft) / np.arange(1, len(ft) + 1) >= 0.5))
+            hi = int(tail[::-1][k[-1]]) - 1 if len(k) else n - 1
+        assert np.array_equal(out.points, pts[lo:hi + 1])
+        trimmed += (lo, hi) != (0, n - 1)
+    assert trimmed > 100

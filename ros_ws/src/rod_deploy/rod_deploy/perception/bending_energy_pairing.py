@@ -26,13 +26,16 @@ from __future__ import annotations
 
 import heapq
 import math
+from functools import lru_cache
 from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
+from numba import njit
 
-from rod_deploy.perception.centreline import arc_length
+from rod_deploy.perception.centreline import _arc_length
 from rod_deploy.perception.crossing_order import median0
+from rod_deploy.perception.fma import fma64
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 
 MAX_TURN_RAD = np.pi - 1e-3
@@ -268,33 +271,62 @@ def branch_geometry(points: np.ndarray, skip_px: float, fit_px: float, max_fract
 
     The anchor sits ``skip_px`` of arc length out (at most ``max_fraction`` of the branch, so that the two
     ends of a short loop keep distinct anchors); the tangent is the principal direction of the next
-    ``fit_px`` of arc, oriented towards the crossing.
+    ``fit_px`` of arc, oriented towards the crossing. (n >= 1, 2) points; compiled (:func:`_branch_geometry`).
     """
-    points = points[:int(2 * (skip_px + fit_px)) + 3]           # only the start matters (1 px steps)
-    s = arc_length(points)                  # (compiled; the same cumulative sums)
-    total = s[-1]
-    skip = min(skip_px, max_fraction * total)
-    i0 = min(int(s.searchsorted(skip)), len(points) - 1)
-    i1 = min(max(int(s.searchsorted(s[i0] + fit_px)), i0 + 1), len(points) - 1)
-    if i1 <= i0:    # a branch of one point: direction from the crossing
-        i0 = max(0, len(points) - 1)
-        d = points[0] - points[-1] if len(points) > 1 else np.array([0.0, 1.0])
-    else:
-        section = points[i0:i1 + 1]
-        centred = section - section.mean(axis=0)
-        (a, b), (_, c) = (centred.T @ centred).tolist()
-        # principal axis of the 2x2 scatter matrix [[a, b], [b, c]] (closed form; isotropic: the column axis)
-        if b == 0.0:
-            d = np.array([1.0, 0.0]) if a > c else np.array([0.0, 1.0])
+    points = np.ascontiguousarray(points[:int(2 * (skip_px + fit_px)) + 3], dtype=np.float64)  # only the start
+    if points.ndim != 2 or points.shape[1] != 2 or not len(points):
+        raise ValueError(f'expected (n >= 1, 2) branch points, got shape {points.shape}')
+    d = np.empty(2)
+    return int(_branch_geometry(points, float(skip_px), float(fit_px), float(max_fraction), d)), d
+
+
+@njit(cache=True, nogil=True)
+def _branch_geometry(points, skip_px, fit_px, max_fraction, d):
+    """:func:`branch_geometry` into ``d``, returning the anchor index. The numpy formulas' arithmetic (on this
+    machine's numpy and OpenBLAS, checked in the tests): arc length as :func:`~.centreline.arc_length`;
+    np.searchsorted (left); the section's mean as numpy's mean along axis 0 (running sums / n); its scatter
+    ``centred.T @ centred`` as OpenBLAS's running fused multiply-adds; the principal axis theta =
+    atan2(2 b, a - c) / 2 (isotropic: the column axis); oriented by the sign of the dot product with
+    p[i0] - p[i1] (an fma, as OpenBLAS's ddot); a one-point section: the direction from the crossing,
+    normalised by its np.linalg.norm (sqrt of the same fma)."""
+    n = points.shape[0]
+    s = _arc_length(points)
+    skip = min(skip_px, max_fraction * s[n - 1])
+    i0 = min(np.searchsorted(s, skip), n - 1)
+    i1 = min(max(np.searchsorted(s, s[i0] + fit_px), i0 + 1), n - 1)
+    if i1 <= i0:            # a branch of one point: direction from the crossing
+        i0 = max(0, n - 1)
+        if n > 1:
+            d[0], d[1] = points[0, 0] - points[n - 1, 0], points[0, 1] - points[n - 1, 1]
         else:
-            theta = 0.5 * math.atan2(2.0 * b, a - c)
-            d = np.array([math.cos(theta), math.sin(theta)])
-        if np.dot(d, points[i0] - points[i1]) < 0:
-            d = -d
-        return i0, d
-    norm = np.linalg.norm(d)
-    d = d / norm if norm > 0 else np.array([0.0, 1.0])
-    return i0, d
+            d[0], d[1] = 0.0, 1.0
+        norm = np.sqrt(fma64(d[1], d[1], d[0] * d[0]))
+        if norm > 0:
+            d[0], d[1] = d[0] / norm, d[1] / norm
+        else:
+            d[0], d[1] = 0.0, 1.0
+        return i0
+    m = i1 + 1 - i0
+    mean_r, mean_c = 0.0, 0.0
+    for k in range(i0, i1 + 1):
+        mean_r += points[k, 0]
+        mean_c += points[k, 1]
+    mean_r, mean_c = mean_r / m, mean_c / m
+    a, b, c = 0.0, 0.0, 0.0
+    for k in range(i0, i1 + 1):
+        x, y = points[k, 0] - mean_r, points[k, 1] - mean_c
+        a = fma64(x, x, a)
+        b = fma64(x, y, b)
+        c = fma64(y, y, c)
+    if b == 0.0:
+        d[0], d[1] = (1.0, 0.0) if a > c else (0.0, 1.0)
+    else:
+        theta = 0.5 * math.atan2(2.0 * b, a - c)
+        d[0], d[1] = math.cos(theta), math.sin(theta)
+    dr, dc = points[i0, 0] - points[i1, 0], points[i0, 1] - points[i1, 1]
+    if fma64(d[1], dc, d[0] * dr) < 0:
+        d[0], d[1] = -d[0], -d[1]
+    return i0
 
 
 def attach_branch_geometry(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px: float,
@@ -336,14 +368,25 @@ def _turn(ax: float, ay: float, bx: float, by: float) -> float:
 def pair_energy(bi: Branch, bj: Branch) -> float:
     """Discrete bending energy [1/px] of joining branch ``bi`` to branch ``bj`` through the crossing
     (the module docstring's E_ij)."""
-    ti, tj = bi.tangent, bj.tangent
-    cx, cy = float(bj.anchor[0] - bi.anchor[0]), float(bj.anchor[1] - bi.anchor[1])
+    return _pair_energy(_geometry(bi), _geometry(bj))
+
+
+def _geometry(b: Branch) -> tuple:
+    """(anchor row, col, tangent row, col) as plain floats (the energies of all pairs take them many times)."""
+    return (*b.anchor.tolist(), *b.tangent.tolist())
+
+
+def _pair_energy(gi: tuple, gj: tuple) -> float:
+    """:func:`pair_energy` of two branches' :func:`_geometry`."""
+    ai0, ai1, ti0, ti1 = gi
+    aj0, aj1, tj0, tj1 = gj
+    cx, cy = aj0 - ai0, aj1 - ai1
     d = math.hypot(cx, cy)
     if d < 1e-9:
-        phis = [_turn(ti[0], ti[1], -tj[0], -tj[1])]
+        phis = [_turn(ti0, ti1, -tj0, -tj1)]
         d = 1.0
     else:
-        phis = [_turn(ti[0], ti[1], cx, cy), _turn(cx, cy, -tj[0], -tj[1])]
+        phis = [_turn(ti0, ti1, cx, cy), _turn(cx, cy, -tj0, -tj1)]
     return sum((2.0 * math.tan(phi / 2.0)) ** 2 for phi in phis) / d
 
 
@@ -355,6 +398,13 @@ def _perfect_matchings(items):
     for k in range(len(rest)):
         for m in _perfect_matchings(rest[:k] + rest[k + 1:]):
             yield [(first, rest[k])] + m
+
+
+@lru_cache(maxsize=16)
+def _all_matchings(n: int) -> tuple:
+    """Every perfect matching of range(n) (odd n: of all but one, left out in turn), in enumeration order."""
+    leave_out = [None] if n % 2 == 0 else list(range(n))
+    return tuple(tuple(m) for skip in leave_out for m in _perfect_matchings([i for i in range(n) if i != skip]))
 
 
 def colours_differ(ci, cj, min_separation: float) -> bool:
@@ -369,8 +419,9 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penal
     if n < 2:
         return [], 0.0
     energy = np.full((n, n), np.inf)
+    geometry = [_geometry(b) for b in branches]
     for i, j in combinations(range(n), 2):
-        e = pair_energy(branches[i], branches[j])
+        e = _pair_energy(geometry[i], geometry[j])
         if colours_differ(branches[i].colour, branches[j].colour, min_colour_separation):
             e += colour_penalty
         if branches[i].edge == branches[j].edge:
@@ -378,14 +429,12 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penal
         energy[i, j] = energy[j, i] = e
     if n <= max_exhaustive:
         best, best_e = [], np.inf
-        leave_out = [None] if n % 2 == 0 else list(range(n))
-        for skip in leave_out:
-            items = [i for i in range(n) if i != skip]
-            for m in _perfect_matchings(items):
-                e = sum(energy[i, j] for i, j in m)
-                if e < best_e:
-                    best, best_e = m, e
-        return best, float(best_e)
+        table = energy.tolist()          # plain floats: the same sums, without numpy scalar indexing
+        for m in _all_matchings(n):
+            e = sum(table[i][j] for i, j in m)
+            if e < best_e:
+                best, best_e = m, e
+        return list(best), float(best_e)
     # many branches (a tangle): greedy, cheapest pair first
     pairs, used, total = [], set(), 0.0
     for e, i, j in sorted((energy[i, j], i, j) for i, j in combinations(range(n), 2)):

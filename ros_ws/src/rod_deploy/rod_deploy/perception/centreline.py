@@ -23,6 +23,7 @@ from numba import njit
 from scipy.ndimage import gaussian_filter1d
 
 from rod_deploy.perception.crossing_order import _pairwise_sum
+from rod_deploy.perception.fma import fma32
 
 
 @dataclass
@@ -74,6 +75,27 @@ def _path_length(points):
     return _pairwise_sum(steps, 0, steps.size)
 
 
+def lookup(image, points):
+    """``image`` at the pixels nearest to (row, col) ``points`` (rounded half to even, as np.round; clipped
+    to the image), compiled for float point arrays."""
+    points = np.asarray(points)
+    if points.dtype != np.float64 or points.ndim != 2 or image.ndim != 2:
+        p = np.round(points).astype(int)
+        return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
+                     np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
+    out = np.empty(len(points), image.dtype)
+    _lookup_kernel(image.view(np.uint8) if image.dtype == bool else image, points,
+                   out.view(np.uint8) if image.dtype == bool else out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _lookup_kernel(image, points, out):
+    h, w = image.shape
+    for i in range(points.shape[0]):
+        out[i] = image[min(max(int(np.rint(points[i, 0])), 0), h - 1), min(max(int(np.rint(points[i, 1])), 0), w - 1)]
+
+
 def resample(points: np.ndarray, step_px: float) -> np.ndarray:
     """Points at equal arc-length spacing (last spacing at most ``step_px``), both ends kept."""
     points = np.asarray(points, dtype=np.float64)
@@ -110,19 +132,33 @@ def _resample_at(points, s, n):
 
 def smooth(points: np.ndarray, sigma_pts: float, closed: bool) -> np.ndarray:
     """Gaussian smoothing along the point index (points at ~equal spacing). Open paths use odd (point)
-    reflection at the ends, which keeps the end points and straight end tangents unbiased."""
+    reflection at the ends, which keeps the end points and straight end tangents unbiased. (n, 2) points,
+    float64 out (:func:`_smooth_path`, compiled)."""
+    points = _as_path(points)
     if sigma_pts <= 0 or len(points) < 3:
         return points.copy()
+    pad = 0 if closed else min(len(points) - 1, int(np.ceil(4 * sigma_pts)))
+    return _smooth_path(points, _gaussian_weights(float(sigma_pts)), closed, pad)
+
+
+@njit(cache=True, nogil=True)
+def _smooth_path(points, weights, closed, pad):
+    """:func:`smooth` of (n, 2) float64 points: closed, the body (without the repeated last point) filtered
+    with periodic ends and its first point appended; open, extended by ``pad`` points reflected through
+    each end (2 p_0 - p_k, 2 p_n-1 - p_n-1-k), filtered (ends extended with the end sample) and cut back."""
+    n = points.shape[0]
     if closed:
-        body = points[:-1]
-        out = gaussian_filter(body, sigma_pts, wrap=True)
-        return np.vstack([out, out[:1]])
-    pad = min(len(points) - 1, int(np.ceil(4 * sigma_pts)))
-    head = 2 * points[0] - points[pad:0:-1]
-    tail = 2 * points[-1] - points[-2:-pad - 2:-1]
-    ext = np.vstack([head, points, tail])
-    out = gaussian_filter(ext, sigma_pts, wrap=False)
-    return out[pad:pad + len(points)]
+        out = np.empty((n, 2))
+        out[:n - 1] = _symmetric_correlate(points[:n - 1], weights, True)
+        out[n - 1] = out[0]
+        return out
+    ext = np.empty((n + 2 * pad, 2))
+    for k in range(pad):
+        for c in range(2):
+            ext[k, c] = 2 * points[0, c] - points[pad - k, c]
+            ext[n + pad + k, c] = 2 * points[n - 1, c] - points[n - 2 - k, c]
+    ext[pad:pad + n] = points
+    return _symmetric_correlate(ext, weights, False)[pad:pad + n].copy()
 
 
 def gaussian_filter(values: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
@@ -169,22 +205,54 @@ def _symmetric_correlate(x, weights, wrap):
 
 
 def tangents(points: np.ndarray, closed: bool) -> np.ndarray:
+    """Unit tangents of an (n, 2) path (:func:`_unit_tangents`: central differences as np.gradient, round
+    the loop if ``closed``; zero where the differences vanish)."""
+    points = _as_path(points)
     if len(points) < 2:
         return np.tile([0.0, 1.0], (len(points), 1))
+    return _unit_tangents(points, closed)
+
+
+def _as_path(points) -> np.ndarray:
+    """(n, 2) float64 C-contiguous points, or a ValueError."""
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise ValueError(f'expected (n, 2) points (row, col), got shape {points.shape}')
+    return points
+
+
+@njit(cache=True, nogil=True)
+def _unit_tangents(points, closed):
+    """:func:`tangents` of (n >= 2, 2) float64 points: closed, p_k+1 - p_k-1 round the body (the last point
+    repeats the first); open, np.gradient's (p_k+1 - p_k-1) / 2 inside and one-sided differences at the ends;
+    each divided by its length sqrt(x^2 + y^2) (np.linalg.norm), 1 where that is 0."""
+    n = points.shape[0]
+    t = np.empty((n, 2))
     if closed:
-        body = points[:-1]
-        t = np.roll(body, -1, axis=0) - np.roll(body, 1, axis=0)
-        t = np.vstack([t, t[:1]])
+        m = n - 1
+        for k in range(m):
+            for c in range(2):
+                t[k, c] = points[(k + 1) % m, c] - points[(k - 1) % m, c]
+        t[m] = t[0]
     else:
-        t = np.gradient(points, axis=0)
-    norm = np.linalg.norm(t, axis=1, keepdims=True)
-    norm[norm == 0] = 1.0
-    return t / norm
+        for c in range(2):
+            t[0, c] = (points[1, c] - points[0, c]) / 1.0
+            t[n - 1, c] = (points[n - 1, c] - points[n - 2, c]) / 1.0
+            for k in range(1, n - 1):
+                t[k, c] = (points[k + 1, c] - points[k - 1, c]) / 2.0
+    for k in range(n):
+        norm = np.sqrt(t[k, 0] * t[k, 0] + t[k, 1] * t[k, 1])
+        if norm == 0:
+            norm = 1.0
+        t[k, 0] /= norm
+        t[k, 1] /= norm
+    return t
 
 
 def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray, half_span_px: float,
                   step_px: float = 0.5):
-    """Evidence sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals."""
+    """Evidence (float32 image) sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals
+    (cv2.remap, bilinear, border replicated: its vectorised kernel is faster than :func:`_bilinear` here)."""
     offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
     cols, rows = _profile_maps(np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64), offsets)
     prof = cv2.remap(evidence, cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -205,17 +273,78 @@ def _profile_maps(points, normals, offsets):
     return cols, rows
 
 
-def _parabolic_peak(g: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Sub-sample offset of the maximum of each row of ``g`` near index ``j`` (parabola through 3); the
-    same for the minimum (``-g`` gives exactly the same result)."""
-    idx = np.arange(len(g))
-    jm = np.clip(j - 1, 0, g.shape[1] - 1)
-    jp = np.clip(j + 1, 0, g.shape[1] - 1)
-    a, b, c = g[idx, jm], g[idx, j], g[idx, jp]
-    denom = a - 2 * b + c
-    with np.errstate(invalid='ignore', divide='ignore'):
-        d = np.where(np.abs(denom) > 1e-9, 0.5 * (a - c) / denom, 0.0)
-    return np.clip(d, -0.5, 0.5)
+@njit(cache=True, nogil=True)
+def _bilinear(image, r, c):
+    """The value at float32 (row, col) of a one-channel image, as ``cv2.remap(image.astype(np.float32), ...,
+    INTER_LINEAR, borderMode=BORDER_REPLICATE)`` gives it (OpenCV's remap kernel: neighbours at the floor
+    and the floor + 1, clamped to the image; fractions a_c = c - floor(c), a_r likewise; v_0 = fma(a_c,
+    p01 - p00, p00), v_1 = fma(a_c, p11 - p10, p10), then fma(a_r, v_1 - v_0, v_0), all in float32; bit for bit,
+    checked against cv2.remap in the tests)."""
+    h, w = image.shape
+    rf, cf = np.floor(r), np.floor(c)
+    ar, ac = r - rf, c - cf
+    r0, c0 = int(rf), int(cf)
+    ra, rb = min(max(r0, 0), h - 1), min(max(r0 + 1, 0), h - 1)
+    ca, cb = min(max(c0, 0), w - 1), min(max(c0 + 1, 0), w - 1)
+    p00, p01 = np.float32(image[ra, ca]), np.float32(image[ra, cb])
+    p10, p11 = np.float32(image[rb, ca]), np.float32(image[rb, cb])
+    v0 = fma32(ac, p01 - p00, p00)
+    v1 = fma32(ac, p11 - p10, p10)
+    return fma32(ar, v1 - v0, v0)
+
+
+@njit(cache=True, nogil=True)
+def _end_target(evidence, end, t, steps, floor, half_width_px):
+    """(found, target): where the end at ``end`` (row, col) should go along the unit tangent ``t``, as an
+    offset [px] along it. The evidence is sampled (:func:`_bilinear`) at ``end + steps t``; the boundary is
+    the first sample inside the image (the ray may enter it late) below 15 % of the peak (the largest of
+    the first 8 samples; the level at least ``floor`` / 2): at the first sample, the end is already
+    outside (target 0); else the steepest fall (central differences) from one step before the first sample
+    below 60 % of the peak (at least ``floor``) to one step past the boundary, refined by a parabola, and
+    the target is half a width inside it. No such sample but the ray leaves the image: the step before the
+    first sample outside it. Neither: not found. Float32 samples compared with float32 levels, as numpy
+    compares them with Python floats."""
+    h, w = evidence.shape
+    n = steps.size
+    vals = np.empty(n, np.float32)
+    inside = np.empty(n, np.bool_)
+    first_outside = -1
+    for k in range(n):
+        r = end[0] + steps[k] * t[0]
+        c = end[1] + steps[k] * t[1]
+        inside[k] = r >= -0.5 and r <= h - 0.5 and c >= -0.5 and c <= w - 0.5
+        if first_outside < 0 and not inside[k]:
+            first_outside = k
+        vals[k] = _bilinear(evidence, np.float32(r), np.float32(c))
+    peak = vals[0]
+    for k in range(1, min(n, 8)):
+        peak = max(peak, vals[k])
+    peak64 = np.float64(peak)
+    level15 = np.float32(max(0.15 * peak64, 0.5 * floor))
+    k15 = -1
+    for k in range(n):
+        if vals[k] < level15 and inside[k]:
+            k15 = k
+            break
+    if k15 < 0:
+        if first_outside < 0:
+            return False, 0.0
+        return True, steps[first_outside - 1 if first_outside > 0 else n - 1]
+    if k15 == 0:
+        return True, 0.0
+    level60 = np.float32(max(0.6 * peak64, floor))
+    k60 = k15
+    for k in range(k15):
+        if vals[k] < level60:
+            k60 = k
+            break
+    lo, hi = max(k60 - 1, 0), min(k15 + 1, n - 1)
+    k, best = lo, _gradient(vals, lo)
+    for j in range(lo + 1, hi + 1):              # steepest fall (first of equals)
+        g = _gradient(vals, j)
+        if g < best:
+            k, best = j, g
+    return True, steps[k] + np.float64(np.float32(0.25) * _parabola_vertex(vals, k)) - half_width_px
 
 
 def edge_positions(profiles: np.ndarray, offsets: np.ndarray, floor: float, core_px: float):
@@ -325,7 +454,9 @@ def _gradient(p, j):
 
 @njit(cache=True, nogil=True)
 def _parabola_vertex(p, j):
-    """:func:`_parabolic_peak` of the gradient of ``p`` at ``j`` (same float32 arithmetic)."""
+    """Sub-sample offset (in [-0.5, 0.5]) of the extremum of the gradient of ``p`` (:func:`_gradient`) at ``j``:
+    the vertex of the parabola through the gradient at j - 1, j, j + 1 (clamped to the profile), in float32
+    (as numpy computes it on float32 profiles; a minimum gives the same offset as the maximum of -g)."""
     k = p.size
     a = _gradient(p, min(max(j - 1, 0), k - 1))
     b = _gradient(p, j)
@@ -355,28 +486,68 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     half_span = 0.8 * approx_width_px + 3.0
     prof, offsets = edge_profiles(evidence, pts[idx], normals[idx], half_span)
     o_l, o_r = edge_positions(prof, offsets, floor, core_px=0.5 * approx_width_px + 1.0)
-    width = o_r - o_l
-    centre = 0.5 * (o_l + o_r)
-    ok = np.isfinite(width)
-    if exclude is not None:
-        ok &= ~exclude(pts[idx])
-    if ok.sum() >= 3:
-        w_med = float(_median(width[ok]))
-        ok &= (width > 0.6 * w_med) & (width < 1.4 * w_med) & (np.abs(centre) < 0.35 * w_med + 1.0)
-    widths = np.full(len(pts), np.nan)
-    widths[idx[ok]] = width[ok]
-    if ok.sum() >= 3:
-        i = np.arange(len(pts))
-        delta = np.interp(i, idx[ok], centre[ok])
+    excluded = exclude(pts[idx]) if exclude is not None else np.zeros(len(idx), np.bool_)
+    delta, widths = np.empty(len(pts)), np.empty(len(pts))
+    w_obj = _edge_correction(idx, o_l, o_r, np.ascontiguousarray(excluded, dtype=np.bool_), delta, widths)
+    if np.isfinite(w_obj):
         delta = gaussian_filter(delta, 2.0, wrap=closed)
         pts = pts + delta[:, None] * normals
-        w_obj = float(_median(width[ok]))
-    else:
-        w_obj = float('nan')
     pts = smooth(pts, sigma_px, closed)
     if closed:
         pts[-1] = pts[0]
     return RefinedPath(pts, w_obj, closed, widths)
+
+
+@njit(cache=True, nogil=True)
+def _edge_correction(idx, o_l, o_r, excluded, delta, widths):
+    """The edge-centred correction of :func:`refine` from the edges ``o_l``, ``o_r`` found at the path points
+    ``idx``: a point counts where both edges are found, it is not ``excluded``, and (with 3 such points
+    or more) its width lies within 0.6-1.4 of their median and its centre offset within 0.35 of it + 1 px.
+    ``widths`` (per path point): the width where it counts, else nan; ``delta``: the centre offsets
+    interpolated along the path (np.interp's arithmetic: slope (x - x_j) + y_j, the end values beyond) if 3
+    or more count. Returns the median width of those (np.median), nan if fewer than 3 count."""
+    m = idx.size
+    width = o_r - o_l
+    centre = 0.5 * (o_l + o_r)
+    ok = np.empty(m, np.bool_)
+    for k in range(m):
+        ok[k] = np.isfinite(width[k]) and not excluded[k]
+    if ok.sum() >= 3:
+        w_med = _sorted_median(width[ok])
+        for k in range(m):
+            ok[k] = ok[k] and width[k] > 0.6 * w_med and width[k] < 1.4 * w_med and \
+                abs(centre[k]) < 0.35 * w_med + 1.0
+    widths[:] = np.nan
+    for k in range(m):
+        if ok[k]:
+            widths[idx[k]] = width[k]
+    if ok.sum() < 3:
+        return np.nan
+    xp = idx[ok].astype(np.float64)
+    fp = centre[ok]
+    last = xp.size - 1
+    j = 0
+    for i in range(delta.size):
+        x = np.float64(i)
+        while j < last and xp[j + 1] <= x:
+            j += 1
+        if x < xp[0]:
+            delta[i] = fp[0]
+        elif x > xp[last]:
+            delta[i] = fp[last]
+        elif j == last or xp[j] == x:
+            delta[i] = fp[j]
+        else:
+            delta[i] = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]) * (x - xp[j]) + fp[j]
+    return _sorted_median(width[ok])
+
+
+@njit(cache=True, nogil=True)
+def _sorted_median(values):
+    """np.median of a 1-D float64 array without nan."""
+    s = np.sort(values)
+    h = s.size // 2
+    return s[h] if s.size % 2 else (s[h - 1] + s[h]) / 2
 
 
 def _median(values: np.ndarray):
@@ -394,7 +565,6 @@ def place_ends(path: RefinedPath, evidence: np.ndarray, floor: float, half_width
     if path.closed or len(path.points) < 3:
         return path
     pts = path.points
-    h, w = evidence.shape
     for end in (0, 1):
         p = pts if end == 1 else pts[::-1]
         s = arc_length(p)
@@ -413,28 +583,9 @@ def place_ends(path: RefinedPath, evidence: np.ndarray, floor: float, half_width
             continue
         t /= nt
         reach = trim + 2.0 * half_width_px + 4.0
-        steps = np.arange(0.0, reach + 1e-9, 0.25)
-        ray = p[-1][None, :] + steps[:, None] * t[None, :]
-        inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
-        vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
-                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
-        peak = float(vals[: max(1, int(2 / 0.25))].max())
-        below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
-        if below.any():
-            k15 = int(np.argmax(below))
-            if k15 == 0:            # the end is already outside: keep it where thinning left it
-                target = 0.0
-            else:                   # boundary: steepest fall between 60 % and 15 % of the peak
-                k60 = int(np.argmax(np.append(vals[:k15] < max(0.6 * peak, floor), True)))
-                g = -np.gradient(vals)
-                lo, hi = max(k60 - 1, 0), min(k15 + 1, len(vals) - 1)
-                k = lo + int(np.argmax(g[lo:hi + 1]))
-                d = _parabolic_peak(g[None, :], np.array([k]))[0]
-                b = steps[k] + 0.25 * d
-                target = b - half_width_px
-        elif not inside.all():      # ran off the image while still on the object: stop at the border
-            target = steps[int(np.argmin(inside)) - 1]
-        else:                       # no boundary within reach (a blob?): leave this end as it was
+        found, target = _end_target(evidence, p[-1], t, np.arange(0.0, reach + 1e-9, 0.25), float(floor),
+                                    float(half_width_px))
+        if not found:               # no boundary within reach (a blob?): leave this end as it was
             continue
         if target > 0.5:
             extra = np.arange(1.0, target + 1e-9, 1.0)

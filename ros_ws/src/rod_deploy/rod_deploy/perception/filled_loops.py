@@ -21,11 +21,6 @@ MIN_BLOB_FACTOR = 2.0    # a filled loop: the mask at least this many rod widths
 MARGIN_PX = 1.5          # the contour level above the rod's own centreline distance (keeps the leads out)
 
 
-def _lookup(image, points):
-    p = np.round(points).astype(int)
-    return image[np.clip(p[:, 0], 0, image.shape[0] - 1), np.clip(p[:, 1], 0, image.shape[1] - 1)]
-
-
 def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), passes_px=(),
                       min_blob_factor: float = MIN_BLOB_FACTOR, margin_px: float = MARGIN_PX):
     """``points`` (an open path, ~1 px steps) with a filled loop traced round its blob, or unchanged.
@@ -37,8 +32,8 @@ def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), pas
     n = len(points)
     if n < 8:
         return points
-    d = _lookup(dist, points).astype(float)
-    w = max(2.0 * float(np.median(d)) - 1.0, 1.0)          # the rod's width in the mask
+    d = cl.lookup(dist, points).astype(float)
+    w = max(2.0 * float(cl._median(d)) - 1.0, 1.0)          # the rod's width in the mask
     k_max = int(np.argmax(d))
     if 2.0 * d[k_max] - 1.0 < min_blob_factor * w:
         return points
@@ -65,7 +60,7 @@ def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), pas
         return points
     centre = ring.mean(axis=0)
     rho = np.hypot(*(ring - centre).T)
-    radius = float(np.median(rho))
+    radius = float(cl._median(rho))
     ring = centre + (ring - centre) * (1.0 + margin_px / np.maximum(rho, 1.0))[:, None]   # back out to the level
     ring = ring[rho <= 1.25 * radius]       # without the spikes where the leads join the blob (its concave corners)
     if len(ring) < 8:
@@ -80,7 +75,7 @@ def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), pas
         q = np.atleast_2d(q)
         if len(q) and (np.hypot(*(q - centre).T) <= radius + 0.5 * w).any():
             return points                                   # a crossing with another path: not a loop
-    idx = np.flatnonzero(_lookup(blob, points - (r0, c0)) > 0)
+    idx = np.flatnonzero(cl.lookup(blob, points - (r0, c0)) > 0)
     idx = idx[(points[idx, 0] >= r0) & (points[idx, 0] < r1) & (points[idx, 1] >= c0) & (points[idx, 1] < c1)]
     if len(idx) == 0:
         return points

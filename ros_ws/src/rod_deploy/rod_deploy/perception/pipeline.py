@@ -171,7 +171,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     dissolve_pass_through_junctions(graph)
     remove_small_parts(graph, min_length / f)
     crossings = find_crossings(graph, config.merge_factor * ws, config.y_merge_factor * ws,
-                               width_at=lambda p: 2.0 * _lookup(skel_dist, p),
+                               width_at=lambda p: 2.0 * cl.lookup(skel_dist, p),
                                fit_px=1.5 * ws + 2.0)
     pair_crossings(graph, crossings, config.skip_factor * ws + 2.0, 1.5 * ws + 2.0, colour_of,
                    config.min_colour_separation)
@@ -182,9 +182,11 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
     traced, gaps = join_gaps(traced, w, len(crossings), config.max_gap_factor, colour_of=colour_full,
                              min_colour_separation=config.min_colour_separation,
-                             covered=lambda p: _lookup(seg.mask, p), max_hidden_factor=config.max_hidden_factor)
+                             covered=lambda p: cl.lookup(seg.mask, p), max_hidden_factor=config.max_hidden_factor)
     zones = [(to_full(c), f * r) for c, r in _crossing_zones(crossings, ws)]
     zones += [(g.centre, 0.5 * g.length_px + 0.5 * w) for g in gaps]
+    zone_centres = np.array([c for c, _ in zones], dtype=np.float64).reshape(-1, 2)
+    zone_radii = np.array([r for _, r in zones], dtype=np.float64)
     traced = [o for o in traced if o.length_px() >= min_length]
     if not traced:
         raise PerceptionError(f'no stroke or rod found: every candidate is shorter than {min_length:.0f} px')
@@ -197,7 +199,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1), lazily
         if dist[0] is None:
             dist[0] = distance_map(seg.mask)
-        return _lookup(dist[0], p)
+        return cl.lookup(dist[0], p)
 
     if len(traced) > 1:
         traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
@@ -215,7 +217,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     for obj in traced:
         if config.refine:
             refined = cl.refine(obj.points, obj.closed, evidence, w, floor,
-                                exclude=lambda p: _in_zones(p, zones), sigma_px=config.smoothing_sigma_px)
+                                exclude=lambda p: _in_zones(p, zone_centres, zone_radii),
+                                sigma_px=config.smoothing_sigma_px)
             width = refined.width_px if np.isfinite(refined.width_px) else w
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
@@ -304,35 +307,14 @@ def _centreline_width(graph, dist, f, w, mismatch):
     points = [e.points for _, e in graph.live_edges() if e.length_px() >= 6.0 * w / f]   # not specks
     if not points:
         return w
-    w_centre = f * (2.0 * float(np.median(_lookup(dist, np.vstack(points)))) - 1.0)
+    w_centre = f * (2.0 * float(cl._median(cl.lookup(dist, np.vstack(points)))) - 1.0)
     return w_centre if w_centre > mismatch * w else w
-
-
-def _lookup(image, points):
-    """``image`` at the pixels nearest to (row, col) ``points`` (rounded half to even, as np.round; clipped
-    to the image), compiled for float point arrays."""
-    points = np.asarray(points)
-    if points.dtype != np.float64 or points.ndim != 2 or image.ndim != 2:
-        p = np.round(points).astype(int)
-        return image[np.minimum(np.maximum(p[:, 0], 0), image.shape[0] - 1),
-                     np.minimum(np.maximum(p[:, 1], 0), image.shape[1] - 1)]
-    out = np.empty(len(points), image.dtype)
-    _lookup_kernel(image.view(np.uint8) if image.dtype == bool else image, points,
-                   out.view(np.uint8) if image.dtype == bool else out)
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _lookup_kernel(image, points, out):
-    h, w = image.shape
-    for i in range(points.shape[0]):
-        out[i] = image[min(max(int(np.rint(points[i, 0])), 0), h - 1), min(max(int(np.rint(points[i, 1])), 0), w - 1)]
 
 
 def _median_evidence(evidence, points):
     """``np.median`` of the (uint8) evidence at ``points``: the middle value, or the mean of the two middle
     ones in float64, without np.median's per-call overhead."""
-    v = np.sort(_lookup(evidence, points))
+    v = np.sort(cl.lookup(evidence, points))
     if not len(v):
         return float('nan')
     h = len(v) // 2
@@ -349,11 +331,20 @@ def _crossing_zones(crossings, w):
     return zones
 
 
-def _in_zones(points, zones):
-    out = np.zeros(len(points), dtype=bool)
-    for centre, radius in zones:
-        out |= np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= radius
+def _in_zones(points, centres, radii):
+    """True for the (row, col) ``points`` within ``radii`` of any of the (k, 2) ``centres`` (np.hypot, compiled)."""
+    out = np.zeros(len(points), dtype=np.bool_)
+    _in_discs(np.ascontiguousarray(points, dtype=np.float64), centres, radii, out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _in_discs(points, centres, radii, out):
+    for i in range(points.shape[0]):
+        for z in range(radii.size):
+            if np.hypot(points[i, 0] - centres[z, 0], points[i, 1] - centres[z, 1]) <= radii[z]:
+                out[i] = True
+                break
 
 
 def _canonical_order(objects, decisions):
@@ -393,7 +384,7 @@ def _place_abutting_ends(obj, points, tees, colours_at, half_width_at, w, f, min
         for anchor, centre, other_width in tees:
             if np.hypot(*(traced_end - anchor)) <= f:
                 if width is None:
-                    width = max(2.0 * float(np.median(half_width_at(points))) - 1.0, 1.0)
+                    width = max(2.0 * float(cl._median(half_width_at(points))) - 1.0, 1.0)
                 p = points if end else points[::-1]
                 p = place_abutting_end(p, anchor, centre, colours_at, width, max(other_width, w),
                                        min_colour_separation)

@@ -29,6 +29,8 @@ import cv2
 import numpy as np
 from numba import njit
 
+from rod_deploy.perception.crossing_order import _pairwise_sum
+
 METHODS = ('contrast', 'dark', 'bright')
 
 
@@ -99,10 +101,39 @@ def estimate_background(bgr: np.ndarray, block_px: int = 8, uniform_tolerance: f
     k = min(15, (min(sh, sw) // 2) * 2 + 1)
     if k >= 3:
         small = cv2.medianBlur(small, k)
-    median = np.median(small.reshape(-1, 3), axis=0)
-    if k < 3 or np.abs(small.reshape(-1, 3) - median).max() <= uniform_tolerance:
+    median = np.empty(3)
+    spread = _channel_medians(np.ascontiguousarray(small).reshape(-1, 3), median)
+    if k < 3 or spread <= uniform_tolerance:
         return tuple(float(v) for v in median)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+@njit(cache=True, nogil=True)
+def _channel_medians(pixels, median):
+    """median[c] = ``np.median(pixels, axis=0)[c]`` of (n, 3) uint8 pixels (the middle value, or the mean of
+    the two middle ones, from per-channel level counts); returns ``np.abs(pixels - median).max()``."""
+    n = pixels.shape[0]
+    counts = np.zeros((3, 256), np.int64)
+    for i in range(n):
+        for c in range(3):
+            counts[c, pixels[i, c]] += 1
+    spread = 0.0
+    for c in range(3):
+        lo, hi = 255, 0
+        lower, upper = -1, -1                  # the values of rank (n - 1) // 2 and n // 2
+        seen = 0
+        for v in range(256):
+            if counts[c, v] == 0:
+                continue
+            lo, hi = min(lo, v), max(hi, v)
+            seen += counts[c, v]
+            if lower < 0 and seen > (n - 1) // 2:
+                lower = v
+            if upper < 0 and seen > n // 2:
+                upper = v
+        median[c] = (np.float64(lower) + np.float64(upper)) / 2.0
+        spread = max(spread, abs(lo - median[c]), abs(hi - median[c]))
+    return spread
 
 
 def foreground_evidence(bgr: np.ndarray, background, method: str) -> np.ndarray:
@@ -208,12 +239,23 @@ def _histogram_split(s: np.ndarray, threshold):
     hist = np.zeros(256, np.float64)
     _count_levels(s, hist)
     t = _otsu(hist) if threshold is None else float(threshold)
-    levels = np.arange(256)
-    above = levels > t
-    n_fg = int(hist[above].sum())
-    mean_fg = float((hist * levels)[above].sum() / max(n_fg, 1))
-    mean_bg = float((hist * levels)[~above].sum() / max(s.size - n_fg, 1))
-    return t, n_fg, mean_fg, mean_bg
+    n_fg, sum_fg, sum_bg = _split_sums(hist, t)
+    n_fg = int(n_fg)
+    return t, n_fg, sum_fg / max(n_fg, 1), sum_bg / max(s.size - n_fg, 1)
+
+
+@njit(cache=True, nogil=True)
+def _split_sums(hist, t):
+    """(pixels above level t, the sum of their levels, the sum of the others' levels) of a histogram of counts
+    (integers: the sums are exact in any order)."""
+    n_fg, sum_fg, sum_bg = 0.0, 0.0, 0.0
+    for v in range(256):
+        if v > t:
+            n_fg += hist[v]
+            sum_fg += hist[v] * v
+        else:
+            sum_bg += hist[v] * v
+    return n_fg, sum_fg, sum_bg
 
 
 @njit(cache=True, nogil=True)
@@ -240,13 +282,34 @@ def _count_levels(s, hist):
 
 def _otsu(hist: np.ndarray) -> float:
     """Otsu's threshold (grey level; values above it are foreground) of a 256-bin histogram."""
-    p = hist / max(hist.sum(), 1.0)
-    omega = np.cumsum(p)
-    mu = np.cumsum(p * np.arange(256))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        between = (mu[-1] * omega - mu) ** 2 / (omega * (1.0 - omega))
-    between[~np.isfinite(between)] = -1.0
-    return float(np.argmax(between))
+    hist = np.ascontiguousarray(hist, dtype=np.float64)
+    if hist.shape != (256,):
+        raise ValueError(f'expected a 256-bin histogram, got shape {hist.shape}')
+    return float(_otsu_level(hist))
+
+
+@njit(cache=True, nogil=True)
+def _otsu_level(hist):
+    """The level maximising the between-class variance (mu_T omega - mu)^2 / (omega (1 - omega)), omega and
+    mu the cumulative sums of p = hist / max(sum, 1) and of p times the level; -1 where that is not finite;
+    the first of equal maxima. The numpy formula's arithmetic: numpy's pairwise sum, running cumulative sums."""
+    p = hist / max(_pairwise_sum(hist, 0, 256), 1.0)
+    omega = np.empty(256)
+    mu = np.empty(256)
+    omega[0], mu[0] = p[0], p[0] * 0.0
+    for v in range(1, 256):
+        omega[v] = omega[v - 1] + p[v]
+        mu[v] = mu[v - 1] + p[v] * v
+    best, level = -np.inf, 0
+    for v in range(256):
+        denom = omega[v] * (1.0 - omega[v])
+        x = mu[255] * omega[v] - mu[v]
+        between = x * x / denom if denom != 0.0 else -1.0
+        if not np.isfinite(between):
+            between = -1.0
+        if between > best:
+            best, level = between, v
+    return level
 
 
 def _pixel_area(contour) -> float:

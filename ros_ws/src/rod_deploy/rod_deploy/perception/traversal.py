@@ -17,8 +17,8 @@ import numpy as np
 from numba import njit
 
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
-from rod_deploy.perception.centreline import path_length
-from rod_deploy.perception.crossing_order import median0
+from rod_deploy.perception.centreline import arc_length, path_length
+from rod_deploy.perception.crossing_order import _column_medians, median0
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
 
@@ -331,46 +331,91 @@ def trim_foreign_ends(o, colours_at, width_px: float, min_separation: float, rea
     if o.closed or len(o.points) < 8:
         return o
     pts = o.points
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s = arc_length(pts)
     reach = reach_factor * width_px
     if s[-1] < 4 * reach:
         return o
-    body = np.flatnonzero((s > reach) & (s < s[-1] - reach))[::max(1, int(0.5 * width_px))]
     first_pass = min((i0 for _, i0, _ in o.passes), default=len(pts))
     last_pass = max((i1 for _, _, i1 in o.passes), default=-1)
-    head = np.flatnonzero((s <= reach) & (np.arange(len(pts)) < first_pass))
-    tail = np.flatnonzero((s >= s[-1] - reach) & (np.arange(len(pts)) > last_pass))
-    col = colours_at(pts[np.concatenate([body, head, tail])])
-    own = median0(col[:len(body)])
-    foreign = np.linalg.norm(col[len(body):] - own, axis=1) > foreign_factor * min_separation
-    lo, hi = 0, len(pts) - 1
-    fh, ft = foreign[:len(head)], foreign[len(head):]
-    if fh.any():                                        # head: indices from the end inwards
-        frac = np.cumsum(fh) / np.arange(1, len(fh) + 1)
-        k = np.flatnonzero(fh & (frac >= min_foreign_fraction))
-        if len(k):
-            lo = int(head[k[-1]]) + 1
-    if ft.any():
-        ft_rev = ft[::-1]
-        frac = np.cumsum(ft_rev) / np.arange(1, len(ft_rev) + 1)
-        k = np.flatnonzero(ft_rev & (frac >= min_foreign_fraction))
-        if len(k):
-            hi = int(tail[::-1][k[-1]]) - 1
+    samples, n_body, n_head = _end_samples(s, reach, max(1, int(0.5 * width_px)), first_pass, last_pass)
+    col = np.ascontiguousarray(colours_at(pts[samples]), dtype=np.float32)
+    lo, hi = _foreign_ends(col, samples, n_body, n_head, len(pts), foreign_factor * min_separation,
+                           min_foreign_fraction)
     if lo == 0 and hi == len(pts) - 1:
         return o
     return TracedObject(pts[lo:hi + 1].copy(), False, [(c, i0 - lo, i1 - lo) for c, i0, i1 in o.passes])
+
+
+@njit(cache=True, nogil=True)
+def _end_samples(s, reach, step, first_pass, last_pass):
+    """(indices, n_body, n_head) for :func:`trim_foreign_ends`: every ``step``-th point of the body (arc
+    length ``s`` more than ``reach`` from both ends), then the head's points (within ``reach`` of the start,
+    before the first pass), then the tail's (within ``reach`` of the end, after the last pass)."""
+    n = s.size
+    end = s[n - 1]
+    out = np.empty(n, np.int64)
+    m = 0
+    seen = 0
+    for i in range(n):
+        if s[i] > reach and s[i] < end - reach:
+            if seen % step == 0:
+                out[m] = i
+                m += 1
+            seen += 1
+    n_body = m
+    for i in range(min(n, first_pass)):
+        if s[i] <= reach:
+            out[m] = i
+            m += 1
+    n_head = m - n_body
+    for i in range(max(last_pass + 1, 0), n):
+        if s[i] >= end - reach:
+            out[m] = i
+            m += 1
+    return out[:m].copy(), n_body, n_head
+
+
+@njit(cache=True, nogil=True)
+def _foreign_ends(col, samples, n_body, n_head, n, limit, min_fraction):
+    """(lo, hi): the kept index range of :func:`trim_foreign_ends` from the float32 colours ``col`` at
+    :func:`_end_samples`: foreign where farther than ``limit`` (float32) from the body's median colour; from
+    each end inwards, the farthest foreign sample where the foreign fraction so far is at least
+    ``min_fraction`` is cut off with everything outside it."""
+    lo, hi = 0, n - 1
+    if n_body == 0:                              # no own colour (numpy's median: nan, nothing foreign)
+        return lo, hi
+    median = np.empty(2, np.float32)
+    _column_medians(col[:n_body], median)
+    bound = np.float32(limit)
+    foreign = 0
+    for k in range(n_head):                      # head: from the start inwards
+        x0, x1 = col[n_body + k, 0] - median[0], col[n_body + k, 1] - median[1]
+        if np.sqrt(x0 * x0 + x1 * x1) > bound:
+            foreign += 1
+            if foreign / (k + 1) >= min_fraction:
+                lo = samples[n_body + k] + 1
+    n_tail = samples.size - n_body - n_head
+    foreign = 0
+    for k in range(n_tail):                      # tail: from the end inwards
+        i = samples.size - 1 - k
+        x0, x1 = col[i, 0] - median[0], col[i, 1] - median[1]
+        if np.sqrt(x0 * x0 + x1 * x1) > bound:
+            foreign += 1
+            if foreign / (k + 1) >= min_fraction:
+                hi = samples[i] - 1
+    return lo, hi
 
 
 def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
     pts = o.points
     if len(pts) < 8:
         return None
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
+    s = arc_length(pts)
     if s[-1] < 2 * min_length_px:
         return None
     step = max(1.0, 0.5 * width_px)
-    idx = np.unique(np.searchsorted(s, np.arange(0.0, s[-1], step)).clip(0, len(pts) - 1))
+    idx = np.searchsorted(s, np.arange(0.0, s[-1], step)).clip(0, len(pts) - 1)
+    idx = idx[np.concatenate([[True], idx[1:] != idx[:-1]])]      # np.unique of the sorted indices
     keep = np.ones(len(idx), dtype=bool)
     for _, i0, i1 in o.passes:                      # crossings show the upper strand's colour
         keep &= ~((s[idx] >= s[i0] - width_px) & (s[idx] <= s[i1] + width_px))
@@ -378,26 +423,49 @@ def _colour_cut(o, colours_at, width_px, min_separation, min_length_px):
     win = max(3, int(round(4 * width_px / step)))
     if len(idx) < 2 * win:
         return None
-    col = colours_at(pts[idx])
-    cc = np.vstack([[0.0, 0.0], np.cumsum(col, axis=0)])
-    k = np.arange(win, len(idx) - win + 1)
-    m1 = (cc[k] - cc[k - win]) / win
-    m2 = (cc[k + win] - cc[k]) / win
-    d = np.linalg.norm(m1 - m2, axis=1)
-    cut_at = (idx[k - 1] + idx[k]) // 2             # between the last sample before and the first after
-    ok = (s[cut_at] >= min_length_px) & (s[-1] - s[cut_at] >= min_length_px)
-    if not ok.any():
-        return None
-    j = int(np.argmax(np.where(ok, d, -1.0)))
-    if d[j] < 2.5 * min_separation:
-        return None
+    col = np.ascontiguousarray(colours_at(pts[idx]), dtype=np.float32)
+    cut = _best_colour_cut(col, np.ascontiguousarray(idx, dtype=np.int64), s, win, float(min_length_px),
+                           2.5 * min_separation, 1.5 * min_separation)
+    return None if cut < 0 else cut
+
+
+@njit(cache=True, nogil=True)
+def _best_colour_cut(col, idx, s, win, min_length_px, min_step, max_spread):
+    """The cut of :func:`_colour_cut` from the float32 colours ``col`` at the samples ``idx`` (arc lengths
+    ``s``), or -1: the mean colours of the ``win`` samples before and after each sample (running float32
+    sums, as np.cumsum, differenced in float64) differ most (Euclidean) where both pieces are at least
+    ``min_length_px`` long; the cut lies between the last sample before and the first after, if that
+    difference is at least ``min_step`` and each piece's colours lie within ``max_spread`` of its median
+    (float32, as numpy compares them) at 80 % of its samples at least."""
+    n = col.shape[0]
+    cc = np.zeros((n + 1, 2))
+    run0, run1 = np.float32(0.0), np.float32(0.0)
+    for i in range(n):
+        run0 += col[i, 0]
+        run1 += col[i, 1]
+        cc[i + 1, 0], cc[i + 1, 1] = run0, run1
+    best_j, best_d, best_cut = -1, -1.0, -1
+    for k in range(win, n - win + 1):
+        d0 = (cc[k, 0] - cc[k - win, 0]) / win - (cc[k + win, 0] - cc[k, 0]) / win
+        d1 = (cc[k, 1] - cc[k - win, 1]) / win - (cc[k + win, 1] - cc[k, 1]) / win
+        d = np.sqrt(d0 * d0 + d1 * d1)
+        cut_at = (idx[k - 1] + idx[k]) // 2
+        if s[cut_at] >= min_length_px and s[s.size - 1] - s[cut_at] >= min_length_px and d > best_d:
+            best_j, best_d, best_cut = k, d, cut_at
+    if best_j < 0 or best_d < min_step:
+        return -1
     # each piece must be one colour along (almost) all its length: not a tangle of several rods
-    split = k[j]
-    for part in (col[:split], col[split:]):
-        spread = np.linalg.norm(part - median0(part), axis=1)
-        if np.mean(spread < 1.5 * min_separation) < 0.8:
-            return None
-    return int(cut_at[j])
+    limit = np.float32(max_spread)
+    median = np.empty(2, np.float32)
+    for lo, hi in ((0, best_j), (best_j, n)):
+        _column_medians(col[lo:hi], median)
+        inside = 0
+        for i in range(lo, hi):
+            x0, x1 = col[i, 0] - median[0], col[i, 1] - median[1]
+            inside += np.sqrt(x0 * x0 + x1 * x1) < limit
+        if inside / (hi - lo) < 0.8:
+            return -1
+    return best_cut
 
 
 def drop_shadow_strands(objects: list, lab_at, half_width_at, min_colour_separation: float,
@@ -471,7 +539,7 @@ def place_abutting_end(points: np.ndarray, anchor, centre, colours_at, width_px:
     pts = np.asarray(points, float)
     if len(pts) < 4:
         return pts
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    s = arc_length(pts)
     ia = int(np.argmin(np.hypot(pts[:, 0] - anchor[0], pts[:, 1] - anchor[1])))
     sa = s[ia]
     body = (s >= sa - 6.0 * width_px) & (s <= sa - 2.0 * width_px)
