@@ -24,7 +24,9 @@ sub-pixel refinement.
     touching end to end, a rod end lying along another rod); then ends of different objects of one
     colour facing each other across at most ``max_gap_factor`` w are joined (a rod cut by the shadow of
     the rod above it, a pen skip), and across up to ``max_hidden_factor`` w if the stretch between them
-    is covered by the mask (a rod hidden under another one along a length);
+    is covered by the mask but for at most ``max_gap_factor`` w (a rod hidden under another one along a
+    length, a shallow crossing); w there is the wider object's own width (the mask's, median along it)
+    where that is larger;
  5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
@@ -182,7 +184,9 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     traced = split_at_colour_changes(traced, colour_full.at, w, config.min_colour_separation, min_length)
     traced, gaps = join_gaps(traced, w, len(crossings), config.max_gap_factor, colour_of=colour_full,
                              min_colour_separation=config.min_colour_separation,
-                             covered=lambda p: cl.lookup(seg.mask, p), max_hidden_factor=config.max_hidden_factor)
+                             covered=lambda p: cl.lookup(seg.mask, p), max_hidden_factor=config.max_hidden_factor,
+                             width_of=lambda p: f * (2.0 * _median_evidence(skel_dist, (p - 0.5 * (f - 1)) / f)
+                                                     - 1.0))
     zones = [(to_full(c), f * r) for c, r in _crossing_zones(crossings, ws)]
     zones += [(g.centre, 0.5 * g.length_px + 0.5 * w) for g in gaps]
     zone_centres = np.array([c for c, _ in zones], dtype=np.float64).reshape(-1, 2)

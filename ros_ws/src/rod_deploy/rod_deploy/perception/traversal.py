@@ -188,7 +188,8 @@ def _reindex_passes(passes, n, reverse, offset, keep_lo, keep_hi):
 
 def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_factor: float = 3.0,
               max_turn_rad: float = np.radians(30.0), colour_of=None, min_colour_separation: float = 12.0,
-              covered=None, max_hidden_factor: float = 20.0, max_hidden_turn_rad: float = np.radians(60.0)):
+              covered=None, max_hidden_factor: float = 20.0, max_hidden_turn_rad: float = np.radians(60.0),
+              width_of=None):
     """Join pairs of open ends of different objects that face each other across a short gap.
 
     An end qualifies when the gap (between the ends' anchors, ``0.75 w + 2`` px back from the ends, since a
@@ -196,16 +197,17 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
     along the gap within ``max_turn_rad`` and (if ``colour_of`` is given) their colours agree; the
     straightest joins go first. With ``covered(points)`` (True where the image shows a rod) a longer
     stretch, up to ``max_hidden_factor`` w with turns up to ``max_hidden_turn_rad``, also qualifies when
-    the whole connector runs over rods: a rod hidden under another one along a length (an end lying along
-    it, a shallow crossing), whose two visible parts are of one colour. A joined object
+    the connector runs over rods but for at most ``max_gap_factor`` w (1 px points): a rod hidden under
+    another one along a length (an end lying along it, a shallow crossing, where the upper rod's shadow
+    may cut the lower one too), whose two visible parts are of one colour. A joined object
     records the gap as a pass, and the object passing closest to the gap's middle (if any, within w)
-    records a pass there too, so that the over/under decision covers the occlusion.
+    records a pass there too, so that the over/under decision covers the occlusion. With ``width_of(points)``
+    (an object's own width [px]), a wider object's ends use its own width w' (the larger of the two ends'
+    for the gap limits): a rod wider than w bends into the junction where it was cut over a longer
+    stretch, and the rod above it cuts a longer gap.
     Returns (objects, gap joins)."""
-    skip = 0.75 * width_px + 2.0
-    fit = 1.5 * width_px + 2.0
-    max_gap = max_gap_factor * width_px + 2.0 * skip
     cos_max = np.cos(max_turn_rad)
-    max_hidden = max_hidden_factor * width_px + 2.0 * skip if covered is not None and max_hidden_factor > 0 else 0.0
+    hidden = covered is not None and max_hidden_factor > 0
     cos_hidden = np.cos(max_hidden_turn_rad)
     objects = list(objects)
     joins = []
@@ -213,14 +215,16 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
     while True:
         new_ends, stretches = [], []
         for o in objects:
-            if id(o) in end_cache or o.closed or o.length_px() < 3 * skip:
+            if id(o) in end_cache or o.closed or o.length_px() < 3 * (0.75 * width_px + 2.0):
                 continue
             end_cache[id(o)] = (o, [])
+            w_o = width_px if width_of is None else max(width_px, float(width_of(o.points)))
+            skip, fit = min(0.75 * w_o + 2.0, o.length_px() / 3), 1.5 * w_o + 2.0
             for last in (False, True):
                 i0, p, t = _end_geometry(o.points, last, skip, fit)
                 q = o.points[::-1] if last else o.points
                 stretches.append(q[i0:i0 + int(np.ceil(fit)) + 1])
-                new_ends.append([last, i0, p, t, None])
+                new_ends.append([last, i0, p, t, None, w_o])
                 end_cache[id(o)][1].append(new_ends[-1])
         if colour_of is not None and new_ends:
             colours = (colour_of.batch(stretches) if hasattr(colour_of, 'batch')
@@ -231,10 +235,13 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
         best = None
         for i in range(len(ends)):
             for j in range(i + 1, len(ends)):
-                oa, la, ia, pa, ta, ca_ = ends[i]
-                ob, lb, ib, pb, tb, cb_ = ends[j]
+                oa, la, ia, pa, ta, ca_, w_a = ends[i]
+                ob, lb, ib, pb, tb, cb_, w_b = ends[j]
                 if oa == ob or colours_differ(ca_, cb_, min_colour_separation):
                     continue
+                w_ab = max(w_a, w_b)
+                max_gap = (max_gap_factor + 1.5) * w_ab + 4.0
+                max_hidden = (max_hidden_factor + 1.5) * w_ab + 4.0 if hidden else 0.0
                 chord = pb - pa
                 d = float(np.linalg.norm(chord))
                 if d > max(max_gap, max_hidden) or d < 1e-6:
@@ -243,14 +250,15 @@ def join_gaps(objects: list, width_px: float, first_crossing_id: int, max_gap_fa
                 ca, cb = float(np.dot(ta, u)), float(np.dot(-tb, u))
                 if d > max_gap or ca < cos_max or cb < cos_max:
                     if (ca < cos_hidden or cb < cos_hidden or d > max_hidden or ca_ is None or cb_ is None
-                            or not covered(hermite_connector(pa, ta, pb, -tb)).all()):
+                            or np.count_nonzero(~covered(hermite_connector(pa, ta, pb, -tb)))
+                            > max_gap_factor * w_ab):
                         continue
                 cost = (1 - ca) + (1 - cb) + 0.01 * d / width_px
                 if best is None or cost < best[0]:
                     best = (cost, ends[i], ends[j], d)
         if best is None:
             return objects, joins
-        _, (oa, la, ia, pa, ta, _), (ob, lb, ib, pb, tb, _), d = best
+        _, (oa, la, ia, pa, ta, _, _), (ob, lb, ib, pb, tb, _, _), d = best
         a, b = objects[oa], objects[ob]
         na, nb = len(a.points), len(b.points)
         pa_pts = a.points if la else a.points[::-1]
