@@ -157,18 +157,22 @@ def statics_check(pattern_name, P, rod, plan_s, s_check_m, friction=0.5, edge_m=
     from rod_deploy.planning.trajectory import local_frames
     plan = plan_trajectory(P, rod, plan_s)
     pat, Lgb, h, L = plan.pattern, rod.gravito_bending_length_m, rod.radius_m, rod.length_m
-    n_edges = int(round(L / edge_m))
-    dl = L / n_edges
     params = material_parameters(rod, friction, 0.0)
     EI, w = params.EI, params.rho_A * 9.81
     Rt_all = local_frames(pat.tangent)
     rows = []
     for s_c in s_check_m:
-        j = int(round(s_c / plan_s.step_m))
+        j = int(np.argmin(np.abs(pat.s - s_c)))        # the planned node nearest to s_c
         if j < 2 or j >= len(pat.s) - 1:
             continue
         Rt = Rt_all[j]
         qc = np.array([*pat.xy[j], h])
+        # the laid part: the rod's first pat.s[j] of length on the planned nodes (uniform, at most step_m apart), the
+        # suspended part L - pat.s[j] in edges of about edge_m (the planner's nodes are no longer exactly edge_m apart)
+        ds_laid = float(pat.s[1] - pat.s[0])
+        n_susp = max(int(round((L - pat.s[j]) / edge_m)), 2)
+        dl = (L - pat.s[j]) / n_susp
+        n_edges = j + n_susp
         ls_bar, ks_bar, kappa_bar = plan.inputs[j]
         g = optimal_grasp(ls_bar, kappa_bar, ks_bar, method='bvp', check_stability=False)
         sol = g.solution
@@ -183,9 +187,9 @@ def statics_check(pattern_name, P, rod, plan_s, s_check_m, friction=0.5, edge_m=
         nodes[-1] = p_grip
         nodes[-2] = p_grip + dl * R_grip[:, 2]
         rod_model = DiscreteElasticRod(nodes, replace(params, friction=0.0), d1_first=None)
-        # rest lengths: the rod's own (dl), not the initial guess's
-        rod_model.rest_lengths[:] = dl
-        rod_model.voronoi[:] = dl
+        # rest lengths: the rod's own (the laid part's node spacing, dl), not the initial guess's
+        rod_model.rest_lengths[:] = np.concatenate([np.full(j, ds_laid), np.full(n_susp, dl)])
+        rod_model.voronoi[:] = 0.5 * (rod_model.rest_lengths[1:] + rod_model.rest_lengths[:-1])
         for i in range(j + 1):
             rod_model.clamp_node(i)
         rod_model.clamp_node(n_edges)
@@ -201,7 +205,7 @@ def statics_check(pattern_name, P, rod, plan_s, s_check_m, friction=0.5, edge_m=
         reac = rod_model.reaction_forces()
         f_nodes = np.array([reac[rod_model.node_dof(i)] for i in range(j + 1)])
         F = f_nodes.sum(0)
-        F[2] -= w * (j * dl)                       # the laid part's own weight (the table carries it)
+        F[2] -= w * pat.s[j]                       # the laid part's own weight (the table carries it)
         M = np.sum(np.cross(x[:j + 1] - x[j], f_nodes), axis=0)
         F_loc, M_loc = Rt.T @ F, Rt.T @ M
         F_plan = Rt.T @ Rt @ (sol.clamp_force * EI / Lgb ** 2)     # the continuum's, local frame [N]
@@ -215,7 +219,7 @@ def statics_check(pattern_name, P, rod, plan_s, s_check_m, friction=0.5, edge_m=
         # curvature at q_C (turning between the last laid edge and the first suspended one, horizontal)
         e0, e1 = x[j] - x[j - 1], x[j + 1] - x[j]
         kappa_c = 2 * (e0[0] * e1[1] - e0[1] * e1[0]) / (np.linalg.norm(e0[:2]) * np.linalg.norm(e1[:2]) +
-                                                  float(np.dot(e0[:2], e1[:2]))) / dl
+                                                  float(np.dot(e0[:2], e1[:2]))) / (0.5 * (ds_laid + dl))
         r_der = (Rt.T @ (x[j:] - qc).T).T / Lgb
         r_bvp = np.column_stack([np.interp(s_susp, sol.s, sol.r[:, k]) for k in range(3)])   # by material s
         shape_mm = 1000 * Lgb * float(np.max(np.linalg.norm(r_der - r_bvp, axis=1)))

@@ -27,7 +27,8 @@ import numpy as np
 
 from results_dir import add_results_argument, results_path
 from rod_deploy.deployment.metrics import eq17_error
-from rod_deploy.deployment.simulate import FRICTION_LEVELS, SimulationSettings, simulate_deployment
+from rod_deploy.deployment.simulate import (FRICTION_LEVELS, LAID_HEIGHT_TOLERANCE_M, SimulationSettings,
+                                            simulate_deployment)
 from rod_deploy.planning.pattern_input import load_pattern
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory, trajectory_times
@@ -109,7 +110,9 @@ def write_table(out, rows, t_all, args):
     lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
              'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
-             f'friction, regularisation velocity {args.friction_velocity:g} m/s); Eq. 17 with N = 50, the deployed curve cut at the pattern length; coverage = deployed / '
+             f'friction, regularisation velocity {args.friction_velocity:g} m/s); the deployed shape: the nodes within '
+             f'{1000 * LAID_HEIGHT_TOLERANCE_M:g} mm of lying on the table, from the free end; Eq. 17 with N = 50, the '
+             'deployed curve cut at the pattern length; coverage = deployed / '
              f'pattern length. Self-contact ignored. Planner start: {args.start or PlannerSettings().start} '
              '(nn, numeric; the friction-limited start plans with the table friction of the row).', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',

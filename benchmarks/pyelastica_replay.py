@@ -62,7 +62,8 @@ from elastica.contact_utils import (_elements_to_nodes_inplace, _find_slipping_e
                                     _node_to_element_mass_or_force, _node_to_element_velocity)
 from numba import njit  # noqa: E402
 from rod_deploy.deployment.metrics import eq17_error  # noqa: E402
-from rod_deploy.deployment.simulate import FRICTION_LEVELS, material_parameters, replay_schedule  # noqa: E402
+from rod_deploy.deployment.simulate import (FRICTION_LEVELS, LAID_HEIGHT_TOLERANCE_M, deployed_shape,  # noqa: E402
+                                            material_parameters, replay_schedule)
 from rod_deploy.planning.rod_description import rod_description_from_dict  # noqa: E402
 
 G = 9.81
@@ -80,7 +81,9 @@ class ElasticaSettings:
     slip_velocity_tol_m_s: float = 1e-4   # below this an element is sticking (PyElastica's static friction)
     hang_settle_s: float = 2.0        # hanging at rest before the replay
     settle_s: float = 1.0             # gripper still at the end
-    contact_tolerance_m: float = 3e-4  # a node lies on the table if z <= h + this (the laid rod ripples by +-0.1 mm)
+    #: a node lies on the table if z <= h + this (our simulator's readout, ``deployed_shape``; the laid rod ripples by
+    #: +-0.1 mm here)
+    contact_tolerance_m: float = LAID_HEIGHT_TOLERANCE_M
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
     friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane: creeps),
     #                                   'pyelastica' (RodPlaneContactWithAnisotropicFriction: creeps and rolls)
@@ -342,9 +345,8 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
         nodes = rod_e.position_collection.T.copy()
         if not np.all(np.isfinite(nodes)):
             raise ValueError('PyElastica diverged (reduce --dt)')
-        on_table = nodes[:, 2] <= h + s.contact_tolerance_m
-        k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(nodes)
-        out.append({'deployed_xy': nodes[:k_end, :2], 'nodes': nodes, 'gripper_path': grid_p,
+        out.append({'deployed_xy': deployed_shape(nodes, h, s.contact_tolerance_m), 'nodes': nodes,
+                    'gripper_path': grid_p,
                     'replay_s': float(sched.t[-1]), 'snapshots': snap,
                     't_release_s': s.hang_settle_s + sched.t_release})
     return out, time.perf_counter() - wall

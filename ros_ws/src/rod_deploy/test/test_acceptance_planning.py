@@ -89,9 +89,13 @@ def heart(n=500, phase=0.003):
 @pytest.mark.parametrize('start', ['achievable', 'tangent'])
 def test_a_cusp_between_two_nodes_is_refused(start):
     """The smoothing spline turns the heart's tip within a millimetre (|kappa_bar| 300 there) but its 5 mm nodes
-    saw at most 1.08: the heart was planned. Now the turning over every step of the dense spline is checked."""
+    saw at most 1.08: the heart was planned. Now the turning over every step of the dense spline is checked. (The
+    nodes run from end to end of the symmetric heart: with an even number of steps, as at the default 5 mm, one
+    node lies on the tip and the node check refuses it; at 4.8 mm the tip falls between two nodes.)"""
     with pytest.raises(PlanningError, match=r'bends too sharply for this rod at \(0.0000, -0.10\d\d\) m, between two '
-                                            r'nodes: it turns by \d+ degrees within 5 mm'):
+                                            r'nodes: it turns by \d+ degrees within 4.8 mm'):
+        plan_trajectory(heart(), ROD, PlannerSettings(method='nn', start=start, step_m=0.0048))
+    with pytest.raises(PlanningError, match=r'bends too sharply for this rod at node \d+ \(0.000\d, -0.10\d\d\) m'):
         plan_trajectory(heart(), ROD, PlannerSettings(method='nn', start=start))
 
 

@@ -132,8 +132,10 @@ def test_orientation_is_continuous(pts):
     Alg. 4's tangent start: the friction-limited start (the default) replaces the pattern's start by a curve that
     depends on the node step, so the two steps would not plan the same curve."""
     turns = []
-    for step_m in (0.005, 0.0025):
+    step_m = 0.005
+    for _ in range(2):
         plan = plan_trajectory(pts, ROD, PlannerSettings(method='nn', step_m=step_m, start='tangent'))
+        step_m = 0.5 * plan.pattern.s[1]          # the nodes at most step_m apart: halve the spacing actually used
         q = plan.quaternion
         np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-12)
         assert np.all(np.sum(q[1:] * q[:-1], axis=1) > 0)
@@ -144,11 +146,13 @@ def test_orientation_is_continuous(pts):
         # over the lead-in, the slerp turns by equal steps
         lead = (plan.rotation[:k].inv() * plan.rotation[1:k + 1]).magnitude()
         np.testing.assert_allclose(lead, lead.mean(), atol=1e-9)
-    # between common nodes (every 5 mm) the two half steps add up to the whole step: no jump hides in between
-    # (to 0.5 degrees: where the curvature changes sign the twist rate varies within a step)
+    # between common nodes (about every 5 mm) the two half steps add up to the whole step: no jump hides in between
+    # (to 1 degree: where the curvature changes sign the twist rate varies within a step, and where the smoothing
+    # spline's curvature has a kink, at a knot, the gripper's turn changes direction within a step: 0.75 degrees in
+    # two half steps against 0.15 in the whole step on this s-curve once the nodes no longer fall on the knot)
     coarse, fine = turns
     n = min(len(coarse), len(fine) // 2)
-    np.testing.assert_allclose(fine[0:2 * n:2] + fine[1:2 * n:2], coarse[:n], rtol=0.02, atol=np.radians(0.5))
+    np.testing.assert_allclose(fine[0:2 * n:2] + fine[1:2 * n:2], coarse[:n], rtol=0.02, atol=np.radians(1.0))
 
 
 def test_hanging_pose_start_and_straight_lead_in():
@@ -238,13 +242,31 @@ def test_spline_keeps_the_first_point_and_the_start_direction():
     np.testing.assert_allclose(np.median(p.kappa[40:-5]) * 0.1, 1.0, atol=0.05)
 
 
+@pytest.mark.parametrize('length', [0.1975, 0.2, 0.2049])
+def test_the_nodes_run_to_the_end_of_the_pattern(length):
+    """Alg. 4 lays the whole pattern: its last node is the pattern's end, the nodes uniformly at most step_m apart
+    (with exactly step_m the last up to one step was never planned: 4.9 mm of the paper's circle)."""
+    pts = np.column_stack([np.linspace(0.0, length, 80), np.zeros(80)])
+    pat = process_pattern(pts, step_m=0.005, smoothing_m=0.0)
+    assert pat.s[-1] == pytest.approx(length, abs=1e-6)
+    np.testing.assert_allclose(pat.xy[-1], [length, 0.0], atol=1e-6)
+    gaps = np.diff(pat.s)
+    assert np.all(gaps <= 0.005 + 1e-12) and np.ptp(gaps) < 1e-12
+    plan = plan_trajectory(pts, ROD, PlannerSettings(method='nn'))
+    np.testing.assert_allclose(plan.pattern.xy[-1], [length, 0.0], atol=1e-6)
+
+
 def test_process_pattern_resamples_uniformly_by_arc_length():
-    """Unevenly spaced points on a circle: nodes every step_m of arc length, on the circle."""
+    """Unevenly spaced points on a circle: nodes uniformly by arc length, at most step_m (4 mm) apart, on the
+    circle from its first point to its last."""
     rng = np.random.default_rng(3)
     th = np.sort(rng.uniform(0, 3.0, 80))
     th[0] = 0.0
     pts = 0.2 * np.column_stack([np.sin(th), 1 - np.cos(th)])
     pat = process_pattern(pts, step_m=0.004, smoothing_m=0.0)
+    arc = 0.2 * th[-1]
+    ds = arc / np.ceil(arc / 0.004)                                 # the largest spacing <= 4 mm that divides it
+    assert pat.s[-1] == pytest.approx(arc, rel=1e-4)
     chord = np.linalg.norm(np.diff(pat.xy, axis=0), axis=1)
-    np.testing.assert_allclose(chord, 2 * 0.2 * np.sin(0.004 / 0.4), rtol=1e-3)    # the chord of 4 mm of arc
+    np.testing.assert_allclose(chord, 2 * 0.2 * np.sin(ds / 0.4), rtol=1e-3)      # the chord of ds of arc
     np.testing.assert_allclose(np.linalg.norm(pat.xy - [0, 0.2], axis=1), 0.2, atol=2e-5)

@@ -25,7 +25,16 @@ v_f r / sqrt(1 - r^2) instead of sticking, so slow replays creep more. The defau
 goes to zero (rod #3's letter U 0.371, 0.135, 0.080 cm at 1e-4, 1e-5, 1e-6 m/s; the letter A 1.021, 0.862, 0.843)
 with no halved step and the same CPU time; the straight rod under half the friction limit creeps 5.8 um in 10 s
 (0.58 mm at 1e-4). At the end the deployed
-shape is read off the table: the nodes in contact, in rod order from the free end, up to where the rod lifts off.
+shape is read off the table (``deployed_shape``): the nodes lying on it, in rod order from the free end, up to where
+the rod rises towards the gripper; a node counts as lying while its centreline is at most
+``LAID_HEIGHT_TOLERANCE_M`` = 0.3 mm above the table's contact height (the PyElastica replay reads its rods the same
+way). With no tolerance (until issue #10's rod #1 round) the readout stopped at the first node lifted by any amount:
+the rod leaves the table at the last planned contact point, and the node there, or the one beyond, is a few
+nanometres to micrometres above or below the contact height, so the deployed curve ended up to one edge (5 mm)
+early by chance, and Eq. 17, which resamples a shorter deployed curve over its own length, spread that shortfall
+along the whole curve (rod #1's circle: 0.24 cm with the end node lifted by 19 um, 0.04 cm with it counted). The
+rod within 0.3 mm of the table beyond the lift-off point (about 1 cm for the paper's rods) is cut off again by
+Eq. 17 at the pattern's length.
 """
 from __future__ import annotations
 
@@ -45,6 +54,8 @@ DEFAULT_DENSITY = 1180.0          # kg/m^3 (vinyl polysiloxane, the paper's rods
 FRICTION_LEVELS = {'low': 0.2, 'medium': 0.5, 'high': 1.0}
 #: regularisation velocity of Coulomb friction [m/s], the deployments' default (the only place it is set; see above)
 DEFAULT_FRICTION_VELOCITY_M_S = 1e-6
+#: a node counts as laid (``deployed_shape``) while its centreline is at most this above the table's contact height
+LAID_HEIGHT_TOLERANCE_M = 3e-4
 #: the rod's natural curvature (> 0 turning left once laid) as the material curvature kappa2: the gripper holds
 #: d1 = x_gripper, which the planner's frames turn vertical on the table, so an in-plane bend is a kappa2 = -kb . d1
 NATURAL_CURVATURE_SIGN = -1.0
@@ -63,7 +74,7 @@ class SimulationSettings:
     settle_s: float = 1.0            # simulated time at the end with the gripper still
     friction: float | None = None    # Coulomb coefficient; None: the rod file's, else 'medium'
     start_xy: tuple | None = None    # free end's start point; None: below the trajectory's first (hanging) pose
-    contact_tolerance_m: float = 0.0   # a node lies on the table if z <= radius + this (contact force on)
+    contact_tolerance_m: float = LAID_HEIGHT_TOLERANCE_M   # the deployed shape: nodes with z <= radius + this
     hold_twist: bool = True          # the gripper also holds the last edge's twist (d1 = x_gripper)
     friction_velocity_m_s: float = DEFAULT_FRICTION_VELOCITY_M_S   # regularisation of Coulomb friction (creep scale)
     hold_free_end: str = 'lead-in'   # 'lead-in' (CONTRACTS.md) or 'always' (the paper pins it for the rope's C)
@@ -90,6 +101,16 @@ class DeploymentResult:
     max_newton_iterations: int = 0   # in any accepted step
     halved_steps: int = 0            # steps of dt_s whose Newton did not converge and were retried as half steps
     smallest_step_s: float = 0.0     # the smallest (sub)step taken
+
+
+def deployed_shape(nodes, radius_m, tolerance_m=LAID_HEIGHT_TOLERANCE_M):
+    """The deployed shape (k, 2) [m]: the rod's nodes (N+1, 3) lying on the table, i.e. with the centreline at most
+    ``tolerance_m`` above the contact height ``radius_m``, in rod order from the free end (node 0) up to the first
+    node above that, where the rod rises towards the gripper; empty when the free end itself is above it."""
+    nodes = np.asarray(nodes, float)
+    on_table = nodes[:, 2] <= radius_m + tolerance_m
+    k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(nodes)
+    return nodes[:k_end, :2].copy()
 
 
 def is_hanging_pose(position, quaternion, rod: RodDescription, tol_m=0.01, tol_rad=0.05):
@@ -337,10 +358,8 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
         if progress is not None:
             progress(k + 1, steps)
     final = rod_model.nodes
-    on_table = final[:, 2] <= h + settings.contact_tolerance_m
-    k_end = int(np.argmin(on_table)) if not np.all(on_table) else len(final)
-    deployed = final[:k_end, :2]
-    return DeploymentResult(deployed_xy=deployed, nodes=final, gripper_path=np.array(path), start_xy=start,
+    return DeploymentResult(deployed_xy=deployed_shape(final, h, settings.contact_tolerance_m), nodes=final,
+                            gripper_path=np.array(path), start_xy=start,
                             lead_in_rows=n_lead, steps=steps, newton_iterations=stats['iterations'],
                             wall_time_s=time.perf_counter() - t_wall, friction=friction, settings=settings,
                             max_newton_iterations=stats['max_iterations'], halved_steps=stats['halved'],

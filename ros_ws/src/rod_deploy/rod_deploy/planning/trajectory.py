@@ -1,13 +1,15 @@
 """Trajectory planning from a pattern (paper Alg. 4): the gripper poses that lay a rod along the pattern.
 
 ProcessPattern: a smoothing spline through the pattern points (``smoothing_m``: the RMS distance the spline may keep
-from them), resampled uniformly by arc length every ``step_m``; tangent T(s) and signed curvature kappa(s) from the
-spline. For each node s (Alg. 4): q_C = P(s), x_hat = T(s), kappa_bar = kappa(s) L_gb, ls_bar = (L - s) / L_gb
-(the rod not yet laid hangs between the connective node and the gripper), the grasp (q_bar_M, R) = F(ls_bar,
-kappa_bar, ks_bar) from the network (``nn``), the numeric solver with curvature continuation (``numeric``) or the
-paper's intuitive baseline (``intuitive``, Fig. 2a: the gripper straight above the contact point at the height of
-the suspended length, moving along the tangent and down by the length laid, i.e. along a 45-degree descent), then
-R_t = (x_hat, z_hat x x_hat, z_hat) and q_M = q_C + R_t q_bar_M L_gb.
+from them), resampled uniformly by arc length from its start to its end, the nodes at most ``step_m`` apart (the
+largest spacing <= step_m that divides the spline's length, so that the last node is the pattern's end: with exactly
+``step_m`` the last up to one step of every pattern was never planned nor laid); tangent T(s) and signed curvature
+kappa(s) from the spline. For each node s (Alg. 4): q_C = P(s), x_hat = T(s), kappa_bar = kappa(s) L_gb,
+ls_bar = (L - s) / L_gb (the rod not yet laid hangs between the connective node and the gripper), the grasp
+(q_bar_M, R) = F(ls_bar, kappa_bar, ks_bar) from the network (``nn``), the numeric solver with curvature
+continuation (``numeric``) or the paper's intuitive baseline (``intuitive``, Fig. 2a: the gripper straight above the
+contact point at the height of the suspended length, moving along the tangent and down by the length laid, i.e. along
+a 45-degree descent), then R_t = (x_hat, z_hat x x_hat, z_hat) and q_M = q_C + R_t q_bar_M L_gb.
 
 The start (``start``): by default (``'achievable'``, ``achievable_start.py``) the pattern's start is replaced, before
 the nodes are planned, by the closest curve whose curvature the table friction can hold near the moment-free end
@@ -54,7 +56,7 @@ class PlanningError(ValueError):
 @dataclass
 class PlannerSettings:
     method: str = 'nn'
-    step_m: float = 0.005                 # Alg. 4's step of deployment (node spacing along the pattern)
+    step_m: float = 0.005                 # Alg. 4's step of deployment (largest node spacing along the pattern)
     smoothing_m: float = 0.0005           # RMS distance the smoothing spline may keep from the pattern points
     speed_m_s: float = 0.01               # gripper speed (quasi-static deployment)
     max_angular_rate_rad_s: float = 0.2   # gripper turning rate cap
@@ -139,7 +141,8 @@ class PlannedTrajectory:
 
 
 def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
-    """ProcessPattern of Alg. 4: smoothing spline, uniform arc-length resampling, tangent, signed curvature.
+    """ProcessPattern of Alg. 4: smoothing spline, uniform arc-length resampling from end to end (nodes at most
+    ``step_m`` apart), tangent, signed curvature.
 
     A smoothing spline is least constrained at its ends, where it spends its allowed distance from the points: with
     equal weights it leaves the published patterns' first point by 0.3-2 mm and turns their start by 0.4-5 degrees
@@ -162,8 +165,8 @@ def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_
     length = s_dense[-1]
     if length < 2 * step_m:
         raise PatternError(f'the pattern is {length:.4g} m long, shorter than two steps of {step_m:g} m')
-    n = int(np.floor(length / step_m + 1e-9)) + 1
-    s = np.arange(n) * step_m
+    n = int(np.ceil(length / step_m - 1e-9)) + 1         # the last node on the pattern's end
+    s = np.linspace(0.0, length, n)
     uu = np.interp(s, s_dense, u)
     p = np.stack(splev(uu, tck), axis=1)
     d1 = np.stack(splev(uu, tck, der=1), axis=1)
