@@ -1,0 +1,50 @@
+"""How fast the planned curvature may change along the pattern: the laid rod cannot take a sudden change of moment.
+
+Why the gripper jumped (issue #10, ``benchmarks/grasp_jump.py``): the optimal grasp is a smooth function of the
+node's curvature, with no change of branch (the network agrees with the numeric solver there to 0.03 L_gb), but a
+steep one - at ls_bar = 25 the gripper's lateral offset moves by 5-6 L_gb per unit of kappa_bar, 17-20 cm for rod
+#3. A pattern whose curvature changes by about one unit of kappa_bar within one 5 mm node (the 10 cm hook's straight
+stem running into its 1.6 cm curl, the digit 2's lower corner) therefore moves the gripper 11-17 cm per node, along a
+straight chord up to 4.8 cm off the path of the optimal grasps in between.
+
+The jump is not what drags the laid rod: the same trajectories deploy to 0.29-0.37 cm on a table with friction 5
+instead of 0.5. The optimal grasp at a node imposes the pattern's bending moment EI kappa there; the rod laid just
+before it holds its own, and the difference is taken by friction over a length of laid rod that grows with the
+jump (a sudden kappa_bar of 2.5 after a 30 cm straight lead drags the last 11 cm of the lead into a loop at friction
+0.5). The planner therefore asks the grasp solver for a curvature that changes at most ``max_rate`` per L_gb of
+pattern: :func:`limit_curvature_rate` spreads a faster change over the neighbouring nodes, conservatively (the
+integral of kappa, the pattern's turning, is kept, so the heading after the change is the pattern's) and only where
+the limit is exceeded (a curvature that changes slower is untouched). The contact point and the tangent stay on the
+pattern; the gripper then moves a few centimetres per node instead of 17 (its step is bounded by the rate times
+dq/dkappa_bar).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: the default limit on |d kappa_bar / d(s / L_gb)| of the planned curvature (measured in benchmarks/grasp_jump.py)
+DEFAULT_MAX_RATE = 0.35
+
+
+def limit_curvature_rate(kappa_bar, step_bar, max_rate, max_iterations=20000):
+    """kappa_bar (m,) with |kappa_bar[i+1] - kappa_bar[i]| <= max_rate * step_bar at every node pair.
+
+    Conservative diffusion on the violating node pairs only: each pair that changes by more than the limit passes a
+    share of its excess to the other node; the sum of kappa_bar (the total turning) is unchanged and a curvature that
+    changes within the limit everywhere is returned unchanged. ``step_bar``: the node spacing over L_gb."""
+    k = np.array(kappa_bar, float, copy=True)
+    if not np.isfinite(max_rate):
+        return k
+    if not (max_rate > 0 and step_bar > 0):
+        raise ValueError(f'max_rate and step_bar must be positive, got {max_rate}, {step_bar}')
+    limit = max_rate * step_bar
+    tol = 1e-2 * limit
+    for _ in range(max_iterations):
+        d = np.diff(k)
+        excess = np.sign(d) * np.maximum(np.abs(d) - limit, 0.0)
+        if np.abs(excess).max(initial=0.0) <= tol:
+            return k
+        # 1/3 of the excess each way: a node between two violating pairs still moves less than either asks
+        k[:-1] += excess / 3.0
+        k[1:] -= excess / 3.0
+    raise RuntimeError('the curvature rate limit did not converge')   # pragma: no cover (a bounded diffusion)
