@@ -72,8 +72,9 @@ def start_length_needed_m(kappa_bar, gravito_bending_length_m, friction, share=1
 #: lead followed by a curl of kappa_bar 2 and on the rehearsal's hook at friction 0.5-5: deployments that asked up to
 #: 1.1 times the bound laid the curl (e_mean 0.37 cm), those asking 1.6 times or more dragged the laid part (3.4-9 cm)
 HOLD_FACTOR = 1.5
-#: curvature [kappa_bar] below which no check is made: the fitted start may exceed the bound by a few hundredths
-#: at its first nodes, where kappa_max is close to zero (largest on the paper's 7 patterns and ours: 0.004)
+#: excess curvature [kappa_bar] tolerated: the fitted start may exceed the bound at its first centimetres (by 0.07
+#: over HOLD_FACTOR kappa_max on an S-curve starting on a 17 cm radius, by 0.1 over kappa_max on a cursive e);
+#: the check is for bends far beyond it (the hook: 1.6 over HOLD_FACTOR kappa_max)
 HOLD_SLACK_KAPPA_BAR = 0.25
 
 

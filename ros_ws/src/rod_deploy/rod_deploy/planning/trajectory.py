@@ -252,9 +252,10 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
 
 
 def check_friction_holds(pattern: ProcessedPattern, kappa_bar, rod: RodDescription, friction, share):
-    """PlanningError when table friction cannot hold the planned curvature at some node (achievable_start.py's
-    bound kappa_max(s), s from the free end, with its margin ``HOLD_FACTOR``): the bend's moment would turn the laid
-    part and drag the free end, whatever the gripper does (a 10 cm hook with a 1.6 cm curl: e_mean 9 cm)."""
+    """PlanningError when table friction cannot hold the planned curvature ``kappa_bar`` at some node
+    (achievable_start.py's bound kappa_max(s), s from the free end, with its margin ``HOLD_FACTOR``): the bend's
+    moment would turn the laid part and drag the free end, whatever the gripper does (the rehearsal's 10 cm hook
+    with a 1.6 cm curl: e_mean 9 cm, the free end dragged 7 cm)."""
     from .achievable_start import HOLD_FACTOR, HOLD_SLACK_KAPPA_BAR, friction_hold_violation
     Lgb = rod.gravito_bending_length_m
     i = friction_hold_violation(pattern.s, kappa_bar, Lgb, friction, share)
@@ -262,12 +263,15 @@ def check_friction_holds(pattern: ProcessedPattern, kappa_bar, rod: RodDescripti
         return
     kb = abs(float(kappa_bar[i]))
     need = Lgb * np.sqrt(8.0 * (kb - HOLD_SLACK_KAPPA_BAR) / (HOLD_FACTOR * share * friction))
+    near = np.flatnonzero(np.abs(pattern.s - pattern.s[i]) <= 0.1)           # the drawn bend within 10 cm
+    j = int(near[np.argmax(np.abs(pattern.kappa[near]))])
     raise PlanningError(
-        f'table friction {friction:g} cannot hold the pattern\'s bend at node {i} ({pattern.xy[i, 0]:.4f}, '
-        f'{pattern.xy[i, 1]:.4f}) m, {pattern.s[i]:.3f} m from the free end: |kappa_bar| = {kb:.2f} (radius '
-        f'{Lgb / kb:.3f} m) needs about {need:.2f} m of rod on the table before it, or the bend\'s moment turns the '
-        f'laid part and drags the free end; start the pattern with a longer lead, draw the bend wider, or deploy '
-        f'on a surface with more friction')
+        f'table friction {friction:g} cannot hold the bend at node {i} ({pattern.xy[i, 0]:.4f}, '
+        f'{pattern.xy[i, 1]:.4f}) m, {pattern.s[i]:.3f} m from the free end (the pattern bends with radius '
+        f'{1 / max(abs(pattern.kappa[j]), 1e-12):.3f} m at ({pattern.xy[j, 0]:.4f}, {pattern.xy[j, 1]:.4f}) m): the '
+        f'planned |kappa_bar| = {kb:.2f} there needs about {need:.2f} m of rod on the table before it, or the bend\'s '
+        f'moment turns the laid part and drags the free end; start the pattern with a longer lead, draw the bend '
+        f'wider, or deploy on a surface with more friction')
 
 
 def grasps(inputs, method, progress=None):
