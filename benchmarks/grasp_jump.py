@@ -68,23 +68,31 @@ def largest_step(plan):
     return i, float(step[i])
 
 
+def local_step(plan, rod):
+    """The largest move [m] of the grasp between two nodes in the pattern's local frame."""
+    return float(np.linalg.norm(np.diff(plan.grasp_position, axis=0), axis=1).max()) * rod.gravito_bending_length_m
+
+
 def planning_study(pats, rod):
     lines = ['## Why the gripper jumps (planning only)', '',
              'Largest gripper move between two consecutive pattern nodes (5 mm apart), rod #3, friction 0.5. '
              '"before": the pattern\'s own curvature (`max_kappa_bar_rate=inf`, no friction check); "now": the '
              'defaults (curvature rate limit, friction check).', '',
-             '| pattern | before: step cm | at s m | ls_bar | kappa_bar (node, next) | now: step cm | now |',
-             '|---|---|---|---|---|---|---|']
+             '"local": the largest move of the grasp in the pattern\'s local frame (q_bar L_gb), i.e. without the '
+             'gripper\'s orbit about the contact point as the tangent turns.', '',
+             '| pattern | before: step cm | local cm | at s m | ls_bar | kappa_bar (node, next) | now: step cm | '
+             'local cm | now |', '|---|---|---|---|---|---|---|---|---|']
     for name in ('hook_10cm', 'digit2', 'wave_tight', 'letterG', 'digit6') + PAPER:
         b = plan_trajectory(pats[name], rod, PlannerSettings(**BEFORE))
         i, st = largest_step(b)
         try:
             a = plan_trajectory(pats[name], rod, PlannerSettings())
-            now_step, now = f'{100 * largest_step(a)[1]:.1f}', 'planned'
+            now_step, now_local, now = f'{100 * largest_step(a)[1]:.1f}', f'{100 * local_step(a, rod):.1f}', 'planned'
         except PlanningError as e:
-            now_step, now = '-', f'refused: {str(e)[:110]}...'
-        lines.append(f'| {name} | {100 * st:.1f} | {b.pattern.s[i]:.3f} | {b.inputs[i, 0]:.1f} | '
-                     f'{b.inputs[i, 2]:.2f}, {b.inputs[i + 1, 2]:.2f} | {now_step} | {now} |')
+            now_step, now_local, now = '-', '-', f'refused: {e}'
+        lines.append(f'| {name} | {100 * st:.1f} | {100 * local_step(b, rod):.1f} | {b.pattern.s[i]:.3f} | '
+                     f'{b.inputs[i, 0]:.1f} | {b.inputs[i, 2]:.2f}, {b.inputs[i + 1, 2]:.2f} | {now_step} | '
+                     f'{now_local} | {now} |')
     net = load_grasp_network()
     ks = rod.ks_bar
     lines += ['', 'How far the optimal grasp moves per unit of kappa_bar (the network, kappa_bar 0 -> 1 and 1 -> 2): '
@@ -165,6 +173,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--deploy', action='store_true', help='also run the deployments (about 20 min on 2 cores)')
     ap.add_argument('--jobs', type=int, default=2)
+    ap.add_argument('--from-json', help='the deployments from an earlier run\'s grasp_jump.json (rewrites the '
+                                        'planning study with the current code)')
     add_results_argument(ap)
     args = ap.parse_args()
     t_all = time.perf_counter()
@@ -172,11 +182,14 @@ def main():
     pats = patterns()
     lines = planning_study(pats, rod)
     rows = []
-    if args.deploy:
+    if args.from_json:
+        rows = json.loads(open(args.from_json).read())
+    elif args.deploy:
         with Pool(args.jobs) as pool:
             for r in pool.imap(deploy, deployment_cases()):
                 rows.append(r)
                 print(json.dumps(r), flush=True)
+    if rows:
         lines += ['', '## Deployments (our DER, Eq. 17)', '',
                   '"before": the planner before this study; "rate R": the curvature rate limit R per L_gb and the '
                   f'friction check; "now": the defaults (rate {DEFAULT_MAX_RATE:g}, friction check). Friction: the '
@@ -194,12 +207,14 @@ def main():
                              f'{r["sigma_cm"]:.3f} | {r["coverage"]:.2f} | {r["free_end_moved_cm"]:.2f} | '
                              f'{r["max_step_cm"]:.1f} |')
     head = ['# Gripper jumps and the laid rod (issue #10), `python benchmarks/grasp_jump.py' +
-            (' --deploy`' if args.deploy else '`'), '',
+            (' --deploy`' if args.deploy or args.from_json else '`'), '',
             f'Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (load average '
-            f'{os.getloadavg()[0]:.1f} at the end); {time.perf_counter() - t_all:.0f} s in all.', '']
+            f'{os.getloadavg()[0]:.1f} at the end); {time.perf_counter() - t_all:.0f} s in all'
+            + (f' (the deployments read from {args.from_json}, as run by `--deploy` at the commit that added this '
+               'script; the planning study rerun)' if args.from_json else '') + '.', '']
     out = results_path(args, 'grasp_jump.md')
     out.write_text('\n'.join(head + lines) + '\n')
-    if rows:
+    if rows and not args.from_json:
         out.with_suffix('.json').write_text(json.dumps(rows, indent=1) + '\n')
     print('\n'.join(head + lines))
 
