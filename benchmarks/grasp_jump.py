@@ -137,7 +137,8 @@ def deployment_cases():
     cases = []
     for mu in (0.5, 2.0, 5.0):
         cases.append(('hook_10cm', 'before', BEFORE, mu))
-    cases += [('hook_10cm', 'now', {}, 0.5), ('hook_10cm', 'now', {'friction': 5.0}, 5.0)]
+    cases += [('hook_10cm', 'now', {}, 0.5), ('hook_10cm', 'now', {'friction': 5.0}, 5.0),
+              ('hook_10cm', 'rate 0.35', {'friction': 5.0, 'max_kappa_bar_rate': 0.35}, 5.0)]
     for lead in (10, 15, 20):
         cases += [(f'lead{lead}_curl', 'before', BEFORE, 0.5), (f'lead{lead}_curl', 'now', {}, 0.5)]
     cases += [('digit2', 'before', BEFORE, 5.0), ('wave_tight', 'before', BEFORE, 2.0),
@@ -150,6 +151,10 @@ def deployment_cases():
     for name in ('circle', 'letterC', 'letterL', 'letterU', 'line', 'sine', 'spiral', 'letterS', 'loop_crossing',
                  'digit6', 'letterG'):
         cases.append((name, 'now', {}, 0.5))
+    # the rate limit's scaling with friction (sqrt(mu / 0.5)) at the paper's low and high friction
+    for mu in (0.2, 1.0):
+        for name in ('digit2', 'letterA'):
+            cases += [(name, 'before', dict(BEFORE, friction=mu), mu), (name, 'now', {'friction': mu}, mu)]
     return cases
 
 
@@ -173,6 +178,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--deploy', action='store_true', help='also run the deployments (about 20 min on 2 cores)')
     ap.add_argument('--jobs', type=int, default=2)
+    ap.add_argument('--select', help='run only the deployments whose "pattern label friction" contains one of these '
+                                     'comma-separated texts, and replace those rows in the grasp_jump.json there')
     ap.add_argument('--from-json', help='the deployments from an earlier run\'s grasp_jump.json (rewrites the '
                                         'planning study with the current code)')
     add_results_argument(ap)
@@ -185,14 +192,23 @@ def main():
     if args.from_json:
         rows = json.loads(open(args.from_json).read())
     elif args.deploy:
+        cases = deployment_cases()
+        if args.select:
+            cases = [c for c in cases if any(t in f'{c[0]} {c[1]} {c[3]:g}' for t in args.select.split(','))]
         with Pool(args.jobs) as pool:
-            for r in pool.imap(deploy, deployment_cases()):
+            for r in pool.imap(deploy, cases):
                 rows.append(r)
                 print(json.dumps(r), flush=True)
+        if args.select:
+            key = lambda r: (r['pattern'], r['label'], r['sim_friction'])
+            new = {key(r): r for r in rows}
+            old = json.loads(results_path(args, 'grasp_jump.json').read_text())
+            rows = [new.pop(key(r), r) for r in old] + list(new.values())
     if rows:
         lines += ['', '## Deployments (our DER, Eq. 17)', '',
                   '"before": the planner before this study; "rate R": the curvature rate limit R per L_gb and the '
-                  f'friction check; "now": the defaults (rate {DEFAULT_MAX_RATE:g}, friction check). Friction: the '
+                  f'friction check; "now": the defaults (rate {DEFAULT_MAX_RATE:g} at friction 0.5, scaled by '
+                  'sqrt(friction / 0.5); friction check). Friction: the '
                   'table\'s in the simulation; the planner plans with 0.5 unless told otherwise. Before (the '
                   'committed tables, same simulator settings): line 0.033, circle 0.046, U 0.080, L 0.157, sine '
                   '0.191, C 0.278, A 0.843; spiral 0.122, S 0.087, loop 0.255, digit 6 0.874, G 0.295 cm.', '',

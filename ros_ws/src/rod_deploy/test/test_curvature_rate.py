@@ -4,7 +4,7 @@ the suspended length per node, and a bend friction cannot hold is refused with t
 import numpy as np
 import pytest
 
-from rod_deploy.planning.curvature_rate import limit_curvature_rate
+from rod_deploy.planning.curvature_rate import default_max_rate, limit_curvature_rate
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory
 
@@ -77,3 +77,18 @@ def test_a_bend_friction_cannot_hold_is_refused_with_the_point():
     # the intuitive baseline lays no bend moment, and the experiment switch plans it anyway
     plan_trajectory(hook, ROD, PlannerSettings(method='intuitive'))
     plan_trajectory(hook, ROD, PlannerSettings(check_friction=False))
+
+
+def test_the_default_rate_scales_with_the_square_root_of_friction():
+    # a change d kappa_bar needs a ramp of about L_gb sqrt(8 d kappa_bar / mu): its slope scales with sqrt(mu)
+    assert default_max_rate(0.5) == pytest.approx(0.35)
+    assert default_max_rate(2.0) == pytest.approx(0.70)
+    # a 20 cm lead into an arc of radius 6 cm (kappa_bar 0.57 at once): spread at friction 0.5, less at 2
+    pts = lead_then_curl(0.2, 0.06, turn_rad=2.0)
+    h = STEP / LGB
+    rates = {}
+    for mu in (0.5, 2.0):
+        plan = plan_trajectory(pts, ROD, PlannerSettings(friction=mu))
+        rates[mu] = np.abs(np.diff(plan.inputs[:, 2])).max() / h
+        assert rates[mu] <= default_max_rate(mu) * 1.011
+    assert rates[2.0] > 1.5 * rates[0.5]

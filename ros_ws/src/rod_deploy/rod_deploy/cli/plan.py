@@ -3,7 +3,7 @@
     rod-deploy plan --pattern P --rod ROD.yaml [--method nn|numeric|intuitive] --out traj.csv [--plot traj.png]
                     [--m-per-px S [--origin ROW COL] | --homography H.txt] [--object K]
                     [--step 0.005] [--smoothing 0.0005] [--speed 0.01] [--start tangent|achievable]
-                    [--max-kappa-bar-rate 0.25]
+                    [--max-kappa-bar-rate R]
 
 P: a points file (x y [z] per line, metres, table frame) or an image of a drawn stroke / a photographed rod with
 its mapping (as for ``rod-deploy perceive``). Writes the contract's trajectory CSV (t,x,y,z,qx,qy,qz,qw: table
@@ -21,7 +21,7 @@ import json
 import sys
 
 from rod_deploy.cli.main import CliError
-from rod_deploy.planning.curvature_rate import DEFAULT_MAX_RATE
+from rod_deploy.planning.curvature_rate import DEFAULT_MAX_RATE, DEFAULT_RATE_FRICTION
 
 #: a friction-limited start further than this from the pattern is reported on stderr [m]
 START_NOTE_M = 0.005
@@ -48,7 +48,8 @@ def register(subparsers):
                         "tangent: Alg. 4 from the pattern's first point")
     p.add_argument('--max-kappa-bar-rate', type=float, default=None,
                    help='largest change of the planned kappa_bar per L_gb of pattern (default '
-                        f'{DEFAULT_MAX_RATE:g}; inf: the pattern\'s own curvature, as Alg. 4)')
+                        f'{DEFAULT_MAX_RATE:g} at friction {DEFAULT_RATE_FRICTION:g}, scaled by sqrt(friction / '
+                        f'{DEFAULT_RATE_FRICTION:g}); inf: the pattern\'s own curvature, as Alg. 4)')
     p.add_argument('--quiet', action='store_true', help='no progress bar (numeric method)')
     p.set_defaults(func=run)
 

@@ -22,8 +22,19 @@ from __future__ import annotations
 
 import numpy as np
 
-#: the default limit on |d kappa_bar / d(s / L_gb)| of the planned curvature (measured in benchmarks/grasp_jump.py)
+#: the limit on |d kappa_bar / d(s / L_gb)| of the planned curvature at table friction 0.5 (benchmarks/grasp_jump.py:
+#: rod #3, 1 -> 0.5 -> 0.35 -> 0.25 -> 0.125 per L_gb; 0.35 the largest gain with none of the paper's 7 worse)
 DEFAULT_MAX_RATE = 0.35
+#: the friction DEFAULT_MAX_RATE was measured at
+DEFAULT_RATE_FRICTION = 0.5
+
+
+def default_max_rate(friction):
+    """The default limit at table friction ``friction``: DEFAULT_MAX_RATE sqrt(friction / 0.5). Friction over a
+    stretch l of laid rod holds a change of kappa_bar of about mu (l / L_gb)^2 / 8 (achievable_start.py's bound), so
+    a change d kappa_bar needs a ramp of L_gb sqrt(8 d kappa_bar / mu): its slope scales with sqrt(mu). Measured at
+    0.5 (the paper's medium) and, for the hook, at 5 (benchmarks/grasp_jump.py)."""
+    return DEFAULT_MAX_RATE * float(np.sqrt(friction / DEFAULT_RATE_FRICTION))
 
 
 def limit_curvature_rate(kappa_bar, step_bar, max_rate, max_iterations=20000):

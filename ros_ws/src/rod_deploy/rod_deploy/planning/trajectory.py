@@ -42,7 +42,7 @@ import numpy as np
 from scipy.interpolate import splev, splprep
 from scipy.spatial.transform import Rotation, Slerp
 
-from .curvature_rate import DEFAULT_MAX_RATE, limit_curvature_rate
+from .curvature_rate import default_max_rate, limit_curvature_rate
 from .pattern_input import PatternError, check_pattern
 from .rod_description import RodDescription
 
@@ -76,8 +76,9 @@ class PlannerSettings:
     #: share c of the friction the 'achievable' start counts on (of the pure-moment capacity mu w s^2 / 4; c = 1
     #: plans exactly what c = 0.5 of the earlier, twice too large bound did: measured best, see achievable_start.py)
     friction_share: float = 1.0
-    #: the largest |d kappa_bar / d(s / L_gb)| asked of the grasp solver (curvature_rate.py); inf: the pattern's own
-    max_kappa_bar_rate: float = DEFAULT_MAX_RATE
+    #: the largest |d kappa_bar / d(s / L_gb)| asked of the grasp solver (curvature_rate.py); None: the default for
+    #: the table friction (0.35 at 0.5, scaled by sqrt(friction / 0.5)); inf: the pattern's own curvature (Alg. 4)
+    max_kappa_bar_rate: float | None = None
     #: refuse a planned curve that table friction cannot hold (check_friction_holds, with the 'achievable' start);
     #: False plans it anyway (experiments: what such a pattern deploys to)
     check_friction: bool = True
@@ -95,7 +96,7 @@ class PlannerSettings:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise PlanningError(f'{name} must be positive, got {v}')
-        if not (self.max_kappa_bar_rate > 0):                         # inf: no limit
+        if self.max_kappa_bar_rate is not None and not (self.max_kappa_bar_rate > 0):     # inf: no limit
             raise PlanningError(f'max_kappa_bar_rate must be positive (inf: no limit), got {self.max_kappa_bar_rate}')
         if not (np.isfinite(self.smoothing_m) and self.smoothing_m >= 0):
             raise PlanningError(f'smoothing_m must be >= 0, got {self.smoothing_m}')
@@ -311,7 +312,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     inputs = node_inputs(pattern, rod, settings)
     if settings.method != 'intuitive':
         Lgb = rod.gravito_bending_length_m
-        kappa_bar = limit_curvature_rate(inputs[:, 2], settings.step_m / Lgb, settings.max_kappa_bar_rate)
+        rate = settings.max_kappa_bar_rate if settings.max_kappa_bar_rate is not None else default_max_rate(mu)
+        kappa_bar = limit_curvature_rate(inputs[:, 2], settings.step_m / Lgb, rate)
         if settings.start == 'achievable':
             # a ramp may not bend the start more than friction holds there (where the planned curve does not)
             from .achievable_start import friction_curvature_limit
