@@ -55,7 +55,9 @@ def lead_curl(lead_m, radius_m=0.017):
 
 def patterns():
     out = all_patterns('all')
-    out['hook_10cm'] = rehearsal_shapes()['hook_10cm'][0]
+    rehearsal = rehearsal_shapes()
+    out['hook_10cm'] = rehearsal['hook_10cm'][0]
+    out['zigzag_4_corners'] = rehearsal['zigzag_4_corners'][0]
     for lead in (10, 15, 20, 30):
         out[f'lead{lead}_curl'] = lead_curl(lead / 100)
     return out
@@ -151,6 +153,8 @@ def deployment_cases():
     for name in ('circle', 'letterC', 'letterL', 'letterU', 'line', 'sine', 'spiral', 'letterS', 'loop_crossing',
                  'digit6', 'letterG'):
         cases.append((name, 'now', {}, 0.5))
+    # the rehearsal's zig-zag given by its 4 corners (never simulated there), now refused at friction 0.5
+    cases += [('zigzag_4_corners', 'before', BEFORE, 0.5), ('zigzag_4_corners', 'now', {}, 0.5)]
     # the rate limit's scaling with friction (sqrt(mu / 0.5)) at the paper's low and high friction
     for mu in (0.2, 1.0):
         for name in ('digit2', 'letterA'):

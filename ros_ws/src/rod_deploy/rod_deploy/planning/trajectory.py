@@ -252,27 +252,25 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
     return np.column_stack([ls_bar, np.full_like(ls_bar, rod.ks_bar), kappa_bar])
 
 
-def check_friction_holds(pattern: ProcessedPattern, kappa_bar, rod: RodDescription, friction, share):
-    """PlanningError when table friction cannot hold the planned curvature ``kappa_bar`` at some node
-    (achievable_start.py's bound kappa_max(s), s from the free end, with its margin ``HOLD_FACTOR``): the bend's
-    moment would turn the laid part and drag the free end, whatever the gripper does (the rehearsal's 10 cm hook
-    with a 1.6 cm curl: e_mean 9 cm, the free end dragged 7 cm)."""
+def check_friction_holds(pattern: ProcessedPattern, rod: RodDescription, friction, share):
+    """PlanningError when table friction cannot hold the planned curve's curvature at some node (achievable_start.py's
+    bound kappa_max(s), s from the free end, with its margin ``HOLD_FACTOR``): the bend's moment would turn the laid
+    part and drag the free end, whatever the gripper does (the rehearsal's 10 cm hook with a 1.6 cm curl: e_mean
+    9 cm, the free end dragged 7 cm). The curvature checked is the planned curve's own, before the rate limit
+    spreads it: spread, the same bend still drags the free end (a 10 cm lead into a 1.7 cm curl: 10 cm)."""
     from .achievable_start import HOLD_FACTOR, HOLD_SLACK_KAPPA_BAR, friction_hold_violation
     Lgb = rod.gravito_bending_length_m
-    i = friction_hold_violation(pattern.s, kappa_bar, Lgb, friction, share)
+    i = friction_hold_violation(pattern.s, pattern.kappa * Lgb, Lgb, friction, share)
     if i is None:
         return
-    kb = abs(float(kappa_bar[i]))
+    kb = abs(float(pattern.kappa[i])) * Lgb
     need = Lgb * np.sqrt(8.0 * (kb - HOLD_SLACK_KAPPA_BAR) / (HOLD_FACTOR * share * friction))
-    near = np.flatnonzero(np.abs(pattern.s - pattern.s[i]) <= 0.1)           # the drawn bend within 10 cm
-    j = int(near[np.argmax(np.abs(pattern.kappa[near]))])
     raise PlanningError(
-        f'table friction {friction:g} cannot hold the bend at node {i} ({pattern.xy[i, 0]:.4f}, '
-        f'{pattern.xy[i, 1]:.4f}) m, {pattern.s[i]:.3f} m from the free end (the pattern bends with radius '
-        f'{1 / max(abs(pattern.kappa[j]), 1e-12):.3f} m at ({pattern.xy[j, 0]:.4f}, {pattern.xy[j, 1]:.4f}) m): the '
-        f'planned |kappa_bar| = {kb:.2f} there needs about {need:.2f} m of rod on the table before it, or the bend\'s '
-        f'moment turns the laid part and drags the free end; start the pattern with a longer lead, draw the bend '
-        f'wider, or deploy on a surface with more friction')
+        f'table friction {friction:g} cannot hold the pattern\'s bend at node {i} ({pattern.xy[i, 0]:.4f}, '
+        f'{pattern.xy[i, 1]:.4f}) m, {pattern.s[i]:.3f} m from the free end: |kappa_bar| = {kb:.2f} (radius '
+        f'{Lgb / kb:.3f} m) needs about {need:.2f} m of rod on the table before it, or the bend\'s moment turns the '
+        f'laid part and drags the free end; start the pattern with a longer lead, draw the bend wider, or deploy '
+        f'on a surface with more friction')
 
 
 def grasps(inputs, method, progress=None):
@@ -310,6 +308,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
         pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
                                    settings.max_abs_kappa_bar)
     inputs = node_inputs(pattern, rod, settings)
+    if settings.check_friction and settings.start == 'achievable' and settings.method != 'intuitive':
+        check_friction_holds(pattern, rod, mu, settings.friction_share)
     if settings.method != 'intuitive':
         Lgb = rod.gravito_bending_length_m
         rate = settings.max_kappa_bar_rate if settings.max_kappa_bar_rate is not None else default_max_rate(mu)
@@ -321,8 +321,6 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
                              friction_curvature_limit(pattern.s, Lgb, mu, settings.friction_share) * Lgb)
             kappa_bar = np.clip(kappa_bar, -cap, cap)
         inputs[:, 2] = kappa_bar
-    if settings.check_friction and settings.start == 'achievable' and settings.method != 'intuitive':
-        check_friction_holds(pattern, inputs[:, 2], rod, mu, settings.friction_share)
     t1 = time.perf_counter()
     qbar, rotvec = grasps(inputs, settings.method, progress)
     t2 = time.perf_counter()
