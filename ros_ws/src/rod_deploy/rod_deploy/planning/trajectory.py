@@ -14,8 +14,8 @@ the nodes are planned, by the closest curve whose curvature the table friction c
 (a start within that bound, e.g. a straight one, is left unchanged); ``'tangent'`` is Alg. 4 as written, every node
 planned on the pattern itself. The intuitive baseline always uses the pattern as given.
 
-The curvature asked of the grasp solver changes at most ``max_kappa_bar_rate`` per L_gb of pattern
-(``curvature_rate.py``): a faster change (a straight stroke running into a tight curl) is spread over a ramp that
+The curvature asked of the grasp solver changes at most ``max_kappa_bar_rate`` per L_gb of pattern (by default
+0.35 at table friction 0.5, scaled by sqrt(friction / 0.5); ``curvature_rate.py``): a faster change (a straight stroke running into a tight curl) is spread over a ramp that
 keeps the pattern's turning; the contact points and tangents stay the pattern's. Without it the optimal grasp,
 which moves 5-6 L_gb per unit of kappa_bar at ls_bar 25, jumps by up to 17 cm between two 5 mm nodes, and the
 sudden change of the bend's moment drags the laid rod (``benchmarks/grasp_jump.py``). With the default start, a
