@@ -230,8 +230,10 @@ def main():
             (' --deploy`' if args.deploy or args.from_json else '`'), '',
             f'Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (load average '
             f'{os.getloadavg()[0]:.1f} at the end); {time.perf_counter() - t_all:.0f} s in all'
-            + (f' (the deployments read from {args.from_json}, as run by `--deploy` at the commit that added this '
-               'script; the planning study rerun)' if args.from_json else '') + '.', '']
+            + (f' (the deployments read from {args.from_json}, written by the `--deploy` runs that the commit '
+               'adding it names; the planning study rerun)' if args.from_json else '')
+            + (f' (only the deployments matching --select {args.select!r} run now, the other rows from the earlier '
+               'full run)' if args.select else '') + '.', '']
     out = results_path(args, 'grasp_jump.md')
     out.write_text('\n'.join(head + lines) + '\n')
     if rows and not args.from_json:
