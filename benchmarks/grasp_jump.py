@@ -1,6 +1,7 @@
 """Why the planned gripper jumps, and what drags the laid rod (issue #10: the acceptance rehearsal's 10 cm hook).
 
     python benchmarks/grasp_jump.py [--deploy] [--jobs 2] [--commit-results]
+    python benchmarks/grasp_jump.py --plot [--commit-results]      # grasp_jump.png: digit 2 and tight wave
 
 Planning only (seconds): for the rehearsal's hook, our digit 2 and tight wave and the paper's 7 patterns (rod #3,
 0.89 m, L_gb 3.4 cm, friction 0.5), the largest gripper step between two consecutive pattern nodes (5 mm) with the
@@ -178,6 +179,43 @@ def deploy(case):
                 max_step_cm=100 * largest_step(plan)[1], wall_s=time.perf_counter() - t0)
 
 
+def plot(path, jobs):
+    """Digit 2 and tight wave at friction 0.5, before and now: pattern, deployed shapes, gripper paths (top view)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    cases = [(n, lab, kw) for n in ('digit2', 'wave_tight') for lab, kw in (('before', BEFORE), ('now', {}))]
+    with Pool(jobs) as pool:
+        runs = pool.map(_deploy_xy, cases)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    pats = patterns()
+    for ax, name in zip(axes, ('digit2', 'wave_tight')):
+        P = pats[name]
+        ax.plot(P[:, 0], P[:, 1], color='0.6', lw=4, label='pattern')
+        for (n, lab, _), (xy, grip, e) in zip(cases, runs):
+            if n != name:
+                continue
+            c = 'tab:red' if lab == 'before' else 'tab:blue'
+            ax.plot(xy[:, 0], xy[:, 1], color=c, lw=1.5, label=f'deployed, {lab} (e_mean {e:.2f} cm)')
+            ax.plot(grip[:, 0], grip[:, 1], color=c, lw=0.8, ls='--', label=f'gripper, {lab}')
+        ax.set_aspect('equal')
+        ax.set_title(f'{name}, rod #3, friction 0.5')
+        ax.set_xlabel('x [m]')
+        ax.set_ylabel('y [m]')
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+
+
+def _deploy_xy(case):
+    name, _, kw = case
+    rod = rod_description_from_dict(ROD)
+    P = patterns()[name]
+    plan = plan_trajectory(P, rod, PlannerSettings(**kw))
+    res = simulate_deployment(plan.t, plan.position, plan.quaternion, rod, SimulationSettings(friction=MU))
+    return res.deployed_xy, plan.position[plan.first_grasp_index:], eq17_error(P, res.deployed_xy)['e_mean_cm']
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--deploy', action='store_true', help='also run the deployments (about 20 min on 2 cores)')
@@ -186,8 +224,12 @@ def main():
                                      'comma-separated texts, and replace those rows in the grasp_jump.json there')
     ap.add_argument('--from-json', help='the deployments from an earlier run\'s grasp_jump.json (rewrites the '
                                         'planning study with the current code)')
+    ap.add_argument('--plot', action='store_true', help='only the plot grasp_jump.png (4 deployments)')
     add_results_argument(ap)
     args = ap.parse_args()
+    if args.plot:
+        plot(results_path(args, 'grasp_jump.png'), args.jobs)
+        return
     t_all = time.perf_counter()
     rod = rod_description_from_dict(ROD)
     pats = patterns()
