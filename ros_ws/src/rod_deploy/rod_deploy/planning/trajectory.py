@@ -15,8 +15,9 @@ the nodes are planned, by the closest curve whose curvature the table friction c
 planned on the pattern itself. The intuitive baseline always uses the pattern as given.
 
 The curvature asked of the grasp solver changes at most ``max_kappa_bar_rate`` per L_gb of pattern (by default
-0.35 at table friction 0.5, scaled by sqrt(friction / 0.5); ``curvature_rate.py``): a faster change (a straight stroke running into a tight curl) is spread over a ramp that
-keeps the pattern's turning; the contact points and tangents stay the pattern's. Without it the optimal grasp,
+0.35 at table friction 0.5, scaled by sqrt(friction / 0.5); ``curvature_rate.py``): a faster change (a straight
+stroke running into a tight curl) is spread over a ramp that keeps the pattern's turning; the contact points and
+tangents stay the pattern's. Without it the optimal grasp,
 which moves 5-6 L_gb per unit of kappa_bar at ls_bar 25, jumps by up to 17 cm between two 5 mm nodes, and the
 sudden change of the bend's moment drags the laid rod (``benchmarks/grasp_jump.py``). With the default start, a
 planned curve that table friction cannot hold - too tight a bend too close to the free end, where the laid part
@@ -123,7 +124,7 @@ class PlannedTrajectory:
     position: np.ndarray          # (n, 3) held node of the rod, table frame [m]
     quaternion: np.ndarray        # (n, 4) gripper orientation, scalar-last
     pattern: ProcessedPattern     # the nodes of Alg. 4
-    inputs: np.ndarray            # (m, 3) (ls_bar, ks_bar, kappa_bar) per node, released sign of kappa_bar
+    inputs: np.ndarray            # (m, 3) (ls_bar, ks_bar, kappa_bar) per node, released sign, kappa_bar rate-limited
     grasp_position: np.ndarray    # (m, 3) q_bar_M in the local frame [L_gb]
     grasp_rotvec: np.ndarray      # (m, 3)
     first_grasp_index: int        # row of the first pattern node (rows before it: hanging pose and lead-in)
