@@ -110,7 +110,8 @@ def planning_study(pats, rod):
     b = plan_trajectory(pats['hook_10cm'], rod, PlannerSettings(**BEFORE))
     i, _ = largest_step(b)
     lines += ['', f'Network vs numeric solver at the hook\'s largest jump (nodes {i}, {i + 1}):', '',
-              '| node | ls_bar | kappa_bar | network q_bar | numeric q_bar | difference L_gb |', '|---|---|---|---|---|---|']
+              '| node | ls_bar | kappa_bar | network q_bar | numeric q_bar | difference L_gb |',
+              '|---|---|---|---|---|---|']
     for j in (i, i + 1):
         ls, _, kb = b.inputs[j]
         g = optimal_grasp(ls, kb, ks, check_stability=False)
@@ -119,7 +120,8 @@ def planning_study(pats, rod):
                      f'| {np.linalg.norm(pn - g.position):.3f} |')
     lines += ['', 'The straight chord between two 5 mm poses against the optimal grasps of the nodes in between '
               '(planned at 0.5 mm, tangent start so that both spacings plan the same curve):', '',
-              '| pattern | largest 5 mm step cm | chord off the grasps cm | largest 0.5 mm step cm |', '|---|---|---|---|']
+              '| pattern | largest 5 mm step cm | chord off the grasps cm | largest 0.5 mm step cm |',
+              '|---|---|---|---|']
     for name in ('hook_10cm', 'digit2', 'wave_tight', 'letterA'):
         fine = plan_trajectory(pats[name], rod, PlannerSettings(step_m=0.0005, start='tangent', **BEFORE))
         p = fine.position[fine.first_grasp_index:]

@@ -69,7 +69,8 @@ def test_a_bend_friction_cannot_hold_is_refused_with_the_point():
     # cannot hold the curl's moment at friction 0.5 (simulated: the whole hook turned, e_mean 9 cm)
     hook = lead_then_curl(0.05, 0.016)
     with pytest.raises(PlanningError, match=r'cannot hold the pattern\'s bend at node \d+ \(-?0\.\d{4}, 0\.\d{4}\) m, '
-                                            r'0\.\d{3} m from the free end: \|kappa_bar\| = 2\.\d\d \(radius 0\.01\d m\)') as e:
+                                            r'0\.\d{3} m from the free end: \|kappa_bar\| = 2\.\d\d '
+                                            r'\(radius 0\.01\d m\)') as e:
         plan_trajectory(hook, ROD, PlannerSettings())
     assert 'friction 0.5' in str(e.value) and 'm of rod on the table before it' in str(e.value)
     # on a table with ten times the friction the same hook is planned (simulated: e_mean 0.37 cm)

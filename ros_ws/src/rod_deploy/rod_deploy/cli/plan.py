@@ -11,9 +11,10 @@ frame, the held node of the rod, +z_gripper along which the rod leaves the gripp
 Methods: ``nn`` (default, the trained network), ``numeric`` (the optimal-grasp solver along the pattern with
 curvature continuation: slow, exact), ``intuitive`` (the paper's baseline). A pattern that cannot be deployed (too
 long for the rod, too sharp, a bend the table friction cannot hold so close to the free end, fewer than 3 points,
-NaN, repeated points) gives one error line naming the point, exit 2, and no file. ``--start achievable`` (the default): the start laid along the curve friction can hold near the
-free end (``planning/achievable_start.py``; the rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's
-start, every node on the pattern itself.
+NaN, repeated points) gives one error line naming the point, exit 2, and no file. ``--start achievable`` (the
+default): the start laid along the curve friction can hold near the free end (``planning/achievable_start.py``; the
+rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every node on the pattern itself.
+``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``).
 """
 from __future__ import annotations
 
