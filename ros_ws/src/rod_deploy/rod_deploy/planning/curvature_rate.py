@@ -10,9 +10,9 @@ straight chord up to 4.8 cm off the path of the optimal grasps in between.
 The jump is not what drags the laid rod: the same trajectories deploy to 0.29-0.37 cm on a table with friction 2-5
 instead of 1.2-9.4 cm at 0.5, and 1 mm nodes (the gripper on the optimal grasps all along, steps of 2.7 cm) leave
 the digit 2 as it was (1.86 cm against 1.81). The optimal grasp at a node imposes the pattern's bending moment
-EI kappa there; the rod laid just before it holds its own, and the difference is taken by friction over a length of laid rod that grows with the
-jump (a sudden kappa_bar of 2.5 after a 30 cm straight lead drags the last 11 cm of the lead into a loop at friction
-0.5). The planner therefore asks the grasp solver for a curvature that changes at most ``max_rate`` per L_gb of
+EI kappa there; the rod laid just before it holds its own, and the difference is taken by friction over a length
+of laid rod that grows with the jump (a sudden kappa_bar of 2.5 after a 30 cm straight lead drags the last 11 cm of
+the lead into a loop at friction 0.5). The planner therefore asks the grasp solver for a curvature that changes at most ``max_rate`` per L_gb of
 pattern: :func:`limit_curvature_rate` spreads a faster change over the neighbouring nodes, conservatively (the
 integral of kappa, the pattern's turning, is kept, so the heading after the change is the pattern's) and only where
 the limit is exceeded (a curvature that changes slower is untouched). The contact point and the tangent stay on the
