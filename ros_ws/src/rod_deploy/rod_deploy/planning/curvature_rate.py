@@ -12,8 +12,8 @@ instead of 1.2-9.4 cm at 0.5, and 1 mm nodes (the gripper on the optimal grasps 
 the digit 2 as it was (1.86 cm against 1.81). The optimal grasp at a node imposes the pattern's bending moment
 EI kappa there; the rod laid just before it holds its own, and the difference is taken by friction over a length
 of laid rod that grows with the jump (a sudden kappa_bar of 2.5 after a 30 cm straight lead drags the last 11 cm of
-the lead into a loop at friction 0.5). The planner therefore asks the grasp solver for a curvature that changes at most ``max_rate`` per L_gb of
-pattern: :func:`limit_curvature_rate` spreads a faster change over the neighbouring nodes, conservatively (the
+the lead into a loop at friction 0.5). The planner therefore asks the grasp solver for a curvature that changes at
+most ``max_rate`` per L_gb of pattern: :func:`limit_curvature_rate` spreads a faster change over the neighbouring nodes, conservatively (the
 integral of kappa, the pattern's turning, is kept, so the heading after the change is the pattern's) and only where
 the limit is exceeded (a curvature that changes slower is untouched). The contact point and the tangent stay on the
 pattern; the grasp moves at most about 1 cm per node in the pattern's frame (the rate times dq/dkappa_bar), the
