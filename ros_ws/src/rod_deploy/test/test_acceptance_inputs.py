@@ -86,10 +86,12 @@ def test_sparse_points_are_noted_by_plan_and_evaluate(tmp_path, capsys):
     arch = np.column_stack([x, 0.12 * np.sin(np.pi * x / 0.45)])
     zigzag = np.array([[0, 0], [0.05, 0.05], [0.1, 0], [0.15, 0.05]])
     (tmp_path / 'rod.yaml').write_text(ROD3)
-    for k, pts in enumerate((arch, zigzag)):
+    # (the zig-zag's first bend, radius 2.7 cm 4.5 cm from the free end, is more than friction 0.5 holds with the
+    # default start: planned with Alg. 4's start here, which the friction check leaves alone)
+    for k, (pts, start) in enumerate(((arch, 'achievable'), (zigzag, 'tangent'))):
         np.savetxt(tmp_path / f'p{k}.txt', pts)
         assert main(['plan', '--pattern', str(tmp_path / f'p{k}.txt'), '--rod', str(tmp_path / 'rod.yaml'), '--out',
-                     str(tmp_path / 'traj.csv')]) == 0
+                     str(tmp_path / 'traj.csv'), '--start', start]) == 0
         assert "note: the pattern's points are up to" in capsys.readouterr().err
     np.savetxt(tmp_path / 'deployed.csv', arch, delimiter=',', header='x,y', comments='')
     assert main(['evaluate', '--pattern', str(tmp_path / 'p0.txt'), '--deployed', str(tmp_path / 'deployed.csv')]) == 0

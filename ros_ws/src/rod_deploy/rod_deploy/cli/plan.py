@@ -3,16 +3,18 @@
     rod-deploy plan --pattern P --rod ROD.yaml [--method nn|numeric|intuitive] --out traj.csv [--plot traj.png]
                     [--m-per-px S [--origin ROW COL] | --homography H.txt] [--object K]
                     [--step 0.005] [--smoothing 0.0005] [--speed 0.01] [--start tangent|achievable]
+                    [--max-kappa-bar-rate R]
 
 P: a points file (x y [z] per line, metres, table frame) or an image of a drawn stroke / a photographed rod with
 its mapping (as for ``rod-deploy perceive``). Writes the contract's trajectory CSV (t,x,y,z,qx,qy,qz,qw: table
 frame, the held node of the rod, +z_gripper along which the rod leaves the gripper), starting at the hanging pose.
 Methods: ``nn`` (default, the trained network), ``numeric`` (the optimal-grasp solver along the pattern with
 curvature continuation: slow, exact), ``intuitive`` (the paper's baseline). A pattern that cannot be deployed (too
-long for the rod, too sharp, fewer than 3 points, NaN, repeated points) gives one error line naming the point,
-exit 2, and no file. ``--start achievable`` (the default): the start laid along the curve friction can hold near the
-free end (``planning/achievable_start.py``; the rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's
-start, every node on the pattern itself.
+long for the rod, too sharp, a bend the table friction cannot hold so close to the free end, fewer than 3 points,
+NaN, repeated points) gives one error line naming the point, exit 2, and no file. ``--start achievable`` (the
+default): the start laid along the curve friction can hold near the free end (``planning/achievable_start.py``; the
+rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every node on the pattern itself.
+``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``).
 """
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ import json
 import sys
 
 from rod_deploy.cli.main import CliError
+from rod_deploy.planning.curvature_rate import DEFAULT_MAX_RATE, DEFAULT_RATE_FRICTION
 
 #: a friction-limited start further than this from the pattern is reported on stderr [m]
 START_NOTE_M = 0.005
@@ -44,6 +47,10 @@ def register(subparsers):
     p.add_argument('--start', choices=('tangent', 'achievable'), default=None,
                    help="achievable (default): the start bent only as far as friction can hold it near the free end; "
                         "tangent: Alg. 4 from the pattern's first point")
+    p.add_argument('--max-kappa-bar-rate', type=float, default=None,
+                   help='largest change of the planned kappa_bar per L_gb of pattern (default '
+                        f'{DEFAULT_MAX_RATE:g} at friction {DEFAULT_RATE_FRICTION:g}, scaled by sqrt(friction / '
+                        f'{DEFAULT_RATE_FRICTION:g}); inf: the pattern\'s own curvature, as Alg. 4)')
     p.add_argument('--quiet', action='store_true', help='no progress bar (numeric method)')
     p.set_defaults(func=run)
 
@@ -60,7 +67,9 @@ def run(args) -> int:
         points = load_pattern(args.pattern, m_per_px=args.m_per_px, origin=args.origin, homography=args.homography,
                               object_index=args.object)
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
-                                   speed_m_s=args.speed, **({'start': args.start} if args.start else {}))
+                                   speed_m_s=args.speed, **({'start': args.start} if args.start else {}),
+                                   **({'max_kappa_bar_rate': args.max_kappa_bar_rate}
+                                      if args.max_kappa_bar_rate is not None else {}))
         bar = None
         if args.method == 'numeric' and not args.quiet:
             from tqdm import tqdm

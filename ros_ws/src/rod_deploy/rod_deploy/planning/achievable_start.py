@@ -67,6 +67,26 @@ def start_length_needed_m(kappa_bar, gravito_bending_length_m, friction, share=1
     return 2.0 * np.sqrt(2.0) * gravito_bending_length_m * np.sqrt(np.abs(kappa_bar) / (share * friction))
 
 
+#: the planner refuses a planned curve asking more than HOLD_FACTOR times kappa_max(s) (plus HOLD_SLACK_KAPPA_BAR)
+#: anywhere: the bound is an estimate (a rigid straight stretch); measured in benchmarks/grasp_jump.py on a straight
+#: lead followed by a curl of kappa_bar 2 and on the rehearsal's hook at friction 0.5-5: deployments that asked up to
+#: 1.1 times the bound laid the curl (e_mean 0.37 cm), those asking 1.6 times or more dragged the laid part (3.4-9 cm)
+HOLD_FACTOR = 1.5
+#: excess curvature [kappa_bar] tolerated: the fitted start may exceed the bound at its first centimetres (by 0.07
+#: over HOLD_FACTOR kappa_max on an S-curve starting on a 17 cm radius, by 0.1 over kappa_max on a cursive e);
+#: the check is for bends far beyond it (the hook: 1.6 over HOLD_FACTOR kappa_max)
+HOLD_SLACK_KAPPA_BAR = 0.25
+
+
+def friction_hold_violation(s_m, kappa_bar, gravito_bending_length_m, friction, share=1.0):
+    """Index of the node whose planned |kappa_bar| friction can least hold - more than HOLD_FACTOR kappa_max(s)
+    L_gb + HOLD_SLACK_KAPPA_BAR - or None when friction holds the whole planned curve."""
+    kmax = friction_curvature_limit(s_m, gravito_bending_length_m, friction, share) * gravito_bending_length_m
+    over = np.abs(np.asarray(kappa_bar, float)) - HOLD_SLACK_KAPPA_BAR - HOLD_FACTOR * kmax
+    i = int(np.argmax(over))
+    return i if over[i] > 0 else None
+
+
 def _cumtrapz(f, ds):
     """Cumulative trapezoids of f (m, ...) on steps ds (m - 1,), starting at 0."""
     inc = 0.5 * (f[1:] + f[:-1]) * ds.reshape((-1,) + (1,) * (f.ndim - 1))

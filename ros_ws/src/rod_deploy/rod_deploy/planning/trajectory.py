@@ -16,6 +16,15 @@ the nodes are planned, by the closest curve whose curvature the table friction c
 (a start within that bound, e.g. a straight one, is left unchanged); ``'tangent'`` is Alg. 4 as written, every node
 planned on the pattern itself. The intuitive baseline always uses the pattern as given.
 
+The curvature asked of the grasp solver changes at most ``max_kappa_bar_rate`` per L_gb of pattern (by default
+0.35 at table friction 0.5, scaled by sqrt(friction / 0.5); ``curvature_rate.py``): a faster change (a straight
+stroke running into a tight curl) is spread over a ramp that keeps the pattern's turning; the contact points and
+tangents stay the pattern's. Without it the optimal grasp,
+which moves 5-6 L_gb per unit of kappa_bar at ls_bar 25, jumps by up to 17 cm between two 5 mm nodes, and the
+sudden change of the bend's moment drags the laid rod (``benchmarks/grasp_jump.py``). With the default start, a
+planned curve that table friction cannot hold - too tight a bend too close to the free end, where the laid part
+is too short to resist its moment - is refused with the node named (``check_friction_holds``).
+
 Sign of the curvature: kappa(s) > 0 turns left (towards z_hat x T, counter-clockwise seen from above); the grasp
 solvers take the released code's kappa_bar = -kappa L_gb (positive turns right, see ``optimal_grasp``).
 
@@ -36,6 +45,7 @@ import numpy as np
 from scipy.interpolate import splev, splprep
 from scipy.spatial.transform import Rotation, Slerp
 
+from .curvature_rate import default_max_rate, limit_curvature_rate
 from .pattern_input import PatternError, check_pattern
 from .rod_description import RodDescription
 
@@ -69,6 +79,12 @@ class PlannerSettings:
     #: share c of the friction the 'achievable' start counts on (of the pure-moment capacity mu w s^2 / 4; c = 1
     #: plans exactly what c = 0.5 of the earlier, twice too large bound did: measured best, see achievable_start.py)
     friction_share: float = 1.0
+    #: the largest |d kappa_bar / d(s / L_gb)| asked of the grasp solver (curvature_rate.py); None: the default for
+    #: the table friction (0.35 at 0.5, scaled by sqrt(friction / 0.5)); inf: the pattern's own curvature (Alg. 4)
+    max_kappa_bar_rate: float | None = None
+    #: refuse a planned curve that table friction cannot hold (check_friction_holds, with the 'achievable' start);
+    #: False plans it anyway (experiments: what such a pattern deploys to)
+    check_friction: bool = True
 
     def validate(self):
         if self.method not in METHODS:
@@ -83,6 +99,8 @@ class PlannerSettings:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise PlanningError(f'{name} must be positive, got {v}')
+        if self.max_kappa_bar_rate is not None and not (self.max_kappa_bar_rate > 0):     # inf: no limit
+            raise PlanningError(f'max_kappa_bar_rate must be positive (inf: no limit), got {self.max_kappa_bar_rate}')
         if not (np.isfinite(self.smoothing_m) and self.smoothing_m >= 0):
             raise PlanningError(f'smoothing_m must be >= 0, got {self.smoothing_m}')
 
@@ -108,7 +126,7 @@ class PlannedTrajectory:
     position: np.ndarray          # (n, 3) held node of the rod, table frame [m]
     quaternion: np.ndarray        # (n, 4) gripper orientation, scalar-last
     pattern: ProcessedPattern     # the nodes of Alg. 4
-    inputs: np.ndarray            # (m, 3) (ls_bar, ks_bar, kappa_bar) per node, released sign of kappa_bar
+    inputs: np.ndarray            # (m, 3) (ls_bar, ks_bar, kappa_bar) per node, released sign, kappa_bar rate-limited
     grasp_position: np.ndarray    # (m, 3) q_bar_M in the local frame [L_gb]
     grasp_rotvec: np.ndarray      # (m, 3)
     first_grasp_index: int        # row of the first pattern node (rows before it: hanging pose and lead-in)
@@ -238,6 +256,27 @@ def node_inputs(pattern: ProcessedPattern, rod: RodDescription, settings: Planne
     return np.column_stack([ls_bar, np.full_like(ls_bar, rod.ks_bar), kappa_bar])
 
 
+def check_friction_holds(pattern: ProcessedPattern, rod: RodDescription, friction, share):
+    """PlanningError when table friction cannot hold the planned curve's curvature at some node (achievable_start.py's
+    bound kappa_max(s), s from the free end, with its margin ``HOLD_FACTOR``): the bend's moment would turn the laid
+    part and drag the free end, whatever the gripper does (the rehearsal's 10 cm hook with a 1.6 cm curl: e_mean
+    9 cm, the free end dragged 7 cm). The curvature checked is the planned curve's own, before the rate limit
+    spreads it: spread, the same bend still drags the free end (a 10 cm lead into a 1.7 cm curl: 10 cm)."""
+    from .achievable_start import HOLD_FACTOR, HOLD_SLACK_KAPPA_BAR, friction_hold_violation
+    Lgb = rod.gravito_bending_length_m
+    i = friction_hold_violation(pattern.s, pattern.kappa * Lgb, Lgb, friction, share)
+    if i is None:
+        return
+    kb = abs(float(pattern.kappa[i])) * Lgb
+    need = Lgb * np.sqrt(8.0 * (kb - HOLD_SLACK_KAPPA_BAR) / (HOLD_FACTOR * share * friction))
+    raise PlanningError(
+        f'table friction {friction:g} cannot hold the pattern\'s bend at node {i} ({pattern.xy[i, 0]:.4f}, '
+        f'{pattern.xy[i, 1]:.4f}) m, {pattern.s[i]:.3f} m from the free end: |kappa_bar| = {kb:.2f} (radius '
+        f'{Lgb / kb:.3f} m) needs about {need:.2f} m of rod on the table before it, or the bend\'s moment turns the '
+        f'laid part and drags the free end; start the pattern with a longer lead, draw the bend wider, or deploy '
+        f'on a surface with more friction')
+
+
 def grasps(inputs, method, progress=None):
     """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs."""
     if method == 'nn':
@@ -264,15 +303,28 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     settings.validate()
     t0 = time.perf_counter()
     pattern = given = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
+    mu = settings.friction or rod.friction or DEFAULT_FRICTION
     if settings.start == 'achievable' and settings.method != 'intuitive':
         from .achievable_start import achievable_start
         # the pattern as drawn is checked first, so that an error names a point of it (the replaced start of a
         # pattern that bends too sharply strays far from it: 15 cm on a digit 3 with a cusp)
         node_inputs(given, rod, settings)
-        mu = settings.friction or rod.friction or DEFAULT_FRICTION
         pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
                                    settings.max_abs_kappa_bar)
     inputs = node_inputs(pattern, rod, settings)
+    if settings.check_friction and settings.start == 'achievable' and settings.method != 'intuitive':
+        check_friction_holds(pattern, rod, mu, settings.friction_share)
+    if settings.method != 'intuitive':
+        Lgb = rod.gravito_bending_length_m
+        rate = settings.max_kappa_bar_rate if settings.max_kappa_bar_rate is not None else default_max_rate(mu)
+        kappa_bar = limit_curvature_rate(inputs[:, 2], settings.step_m / Lgb, rate)
+        if settings.start == 'achievable':
+            # a ramp may not bend the start more than friction holds there (where the planned curve does not)
+            from .achievable_start import friction_curvature_limit
+            cap = np.maximum(np.abs(inputs[:, 2]),
+                             friction_curvature_limit(pattern.s, Lgb, mu, settings.friction_share) * Lgb)
+            kappa_bar = np.clip(kappa_bar, -cap, cap)
+        inputs[:, 2] = kappa_bar
     t1 = time.perf_counter()
     qbar, rotvec = grasps(inputs, settings.method, progress)
     t2 = time.perf_counter()

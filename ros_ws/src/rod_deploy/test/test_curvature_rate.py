@@ -1,0 +1,95 @@
+"""The curvature rate limit of the planner (curvature_rate.py) and what it and the friction check do to a plan: a
+sudden change of curvature is spread over a ramp (the turning kept), the gripper no longer jumps by a large part of
+the suspended length per node, and a bend friction cannot hold is refused with the point named."""
+import numpy as np
+import pytest
+
+from rod_deploy.planning.curvature_rate import default_max_rate, limit_curvature_rate
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory
+
+LGB, STEP = 0.034, 0.005
+ROD = rod_description_from_dict({'length': 0.89, 'radius': 0.002, 'L_gb': LGB, 'friction': 0.5})
+
+
+def lead_then_curl(lead_m, radius_m, turn_rad=np.pi):
+    """A straight lead along +y, then a turn to the left of ``radius_m``: a jump of the curvature."""
+    line = np.column_stack([np.zeros(200), np.linspace(0.0, lead_m, 200)])
+    th = np.linspace(0.0, turn_rad, 100)[1:]
+    return np.vstack([line, np.column_stack([-radius_m + radius_m * np.cos(th), lead_m + radius_m * np.sin(th)])])
+
+
+def test_a_step_becomes_a_ramp_at_the_rate_with_the_turning_kept():
+    k = np.r_[np.zeros(60), np.full(60, 2.0)]
+    h = STEP / LGB
+    out = limit_curvature_rate(k, h, 0.5)
+    assert np.abs(np.diff(out)).max() <= 0.5 * h * 1.011                   # the limit (1 % tolerance of the solver)
+    assert out.sum() == pytest.approx(k.sum(), rel=1e-12)                   # the pattern's turning is kept
+    assert np.all(np.diff(out) >= -1e-12)                                   # monotone: no overshoot
+    ramp = np.flatnonzero((out > 0.01) & (out < 1.99))
+    assert len(ramp) * h == pytest.approx(2.0 / 0.5, rel=0.1)               # 4 L_gb long, centred on the step
+    assert ramp.mean() == pytest.approx(59.5, abs=1.0)
+    np.testing.assert_array_equal(out[:30], 0.0)                            # untouched away from the step
+    np.testing.assert_array_equal(out[-30:], 2.0)
+
+
+def test_a_curvature_within_the_rate_is_unchanged():
+    s_bar = np.arange(200) * STEP / LGB
+    k = 0.8 * np.sin(s_bar / 4.0)                                           # rate at most 0.2 per L_gb
+    np.testing.assert_array_equal(limit_curvature_rate(k, STEP / LGB, 0.25), k)
+    np.testing.assert_array_equal(limit_curvature_rate(k, STEP / LGB, np.inf), k)
+    with pytest.raises(ValueError):
+        limit_curvature_rate(k, STEP / LGB, 0.0)
+    with pytest.raises(PlanningError, match='max_kappa_bar_rate'):
+        plan_trajectory(lead_then_curl(0.3, 0.05), ROD, PlannerSettings(max_kappa_bar_rate=-1.0))
+
+
+def test_no_gripper_jump_where_the_curvature_jumps():
+    # a 30 cm lead, then a curl of radius 1.7 cm (kappa_bar 2): the pattern's curvature jumps by 2 within a node,
+    # and with it the optimal grasp, by about 20 cm at ls_bar 17 (28 cm per 5 mm node before the rate limit)
+    pts = lead_then_curl(0.3, 0.017)
+    plan = plan_trajectory(pts, ROD, PlannerSettings())
+    raw = plan_trajectory(pts, ROD, PlannerSettings(max_kappa_bar_rate=np.inf))   # Alg. 4: the pattern's own
+    # the grasp in the pattern's local frame: at most rate x node spacing x |dq/dkappa_bar| (6 L_gb) per node
+    local = np.linalg.norm(np.diff(plan.grasp_position, axis=0), axis=1) * LGB
+    assert local.max() < 0.015
+    assert np.linalg.norm(np.diff(raw.grasp_position, axis=0), axis=1).max() * LGB > 0.10
+    # in the table frame the gripper also orbits the contact point with the tangent (20 cm out, 17 degrees per
+    # node on the curl): a smooth motion, no longer a jump
+    k = plan.first_grasp_index
+    assert np.linalg.norm(np.diff(plan.position[k:], axis=0), axis=1).max() < 0.08
+    assert np.linalg.norm(np.diff(raw.position[k:], axis=0), axis=1).max() > 0.14
+    # the contact points and tangents are the pattern's: only the curvature asked of the grasp solver changes
+    np.testing.assert_allclose(plan.pattern.xy, raw.pattern.xy)
+    assert np.sum(plan.inputs[:, 2]) == pytest.approx(np.sum(raw.inputs[:, 2]), rel=1e-9)
+
+
+def test_a_bend_friction_cannot_hold_is_refused_with_the_point():
+    # the acceptance rehearsal's hook: a 5 cm stem and a half turn of radius 1.6 cm at its end; the laid 5-10 cm
+    # cannot hold the curl's moment at friction 0.5 (simulated: the whole hook turned, e_mean 9 cm)
+    hook = lead_then_curl(0.05, 0.016)
+    with pytest.raises(PlanningError, match=r'cannot hold the pattern\'s bend at node \d+ \(-?0\.\d{4}, 0\.\d{4}\) m, '
+                                            r'0\.\d{3} m from the free end: \|kappa_bar\| = 2\.\d\d '
+                                            r'\(radius 0\.01\d m\)') as e:
+        plan_trajectory(hook, ROD, PlannerSettings())
+    assert 'friction 0.5' in str(e.value) and 'm of rod on the table before it' in str(e.value)
+    # on a table with ten times the friction the same hook is planned (simulated: e_mean 0.37 cm)
+    plan_trajectory(hook, ROD, PlannerSettings(friction=5.0))
+    # the intuitive baseline lays no bend moment, and the experiment switch plans it anyway
+    plan_trajectory(hook, ROD, PlannerSettings(method='intuitive'))
+    plan_trajectory(hook, ROD, PlannerSettings(check_friction=False))
+
+
+def test_the_default_rate_scales_with_the_square_root_of_friction():
+    # a change d kappa_bar needs a ramp of about L_gb sqrt(8 d kappa_bar / mu): its slope scales with sqrt(mu)
+    assert default_max_rate(0.5) == pytest.approx(0.35)
+    assert default_max_rate(2.0) == pytest.approx(0.70)
+    # a 20 cm lead into an arc of radius 6 cm (kappa_bar 0.57 at once): spread at friction 0.5, less at 2
+    pts = lead_then_curl(0.2, 0.06, turn_rad=2.0)
+    h = STEP / LGB
+    rates = {}
+    for mu in (0.5, 2.0):
+        plan = plan_trajectory(pts, ROD, PlannerSettings(friction=mu))
+        rates[mu] = np.abs(np.diff(plan.inputs[:, 2])).max() / h
+        assert rates[mu] <= default_max_rate(mu) * 1.011
+    assert rates[2.0] > 1.5 * rates[0.5]
