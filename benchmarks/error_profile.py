@@ -46,13 +46,17 @@ def profile(npz, radius_m, lgb_m, tol_m=5e-4):
     err_final = np.linalg.norm(final[:len(s_node), :2] - Ps, axis=1)
     err_touch = np.linalg.norm(touch - Ps, axis=1)
     moved = np.linalg.norm(final[:len(s_node), :2] - touch, axis=1)
+    # the shape alone: each node's distance to the nearest point of the pattern (a lag along it does not count)
+    dense_s = np.linspace(0.0, sp[-1], 4000)
+    dense = np.column_stack([np.interp(dense_s, sp, P[:, k]) for k in range(2)])
+    nearest = np.array([np.min(np.linalg.norm(dense - x, axis=1)) for x in final[:len(s_node), :2]])
     # the pattern's curvature at s_i (finite differences of the tangent angle, smoothed over 1 cm)
     th = np.unwrap(np.arctan2(np.gradient(P[:, 1]), np.gradient(P[:, 0])))
     kap = np.gradient(th, sp)
     w = max(1, int(round(0.01 / np.mean(np.diff(sp)))))
     kap = np.convolve(kap, np.ones(w) / w, mode='same')
     kbar = np.abs(np.interp(s_node, sp, kap)) * lgb_m
-    return dict(s=s_node, err_final=err_final, err_touch=err_touch, moved=moved, kbar=kbar, laid=laid,
+    return dict(s=s_node, err_final=err_final, err_touch=err_touch, moved=moved, nearest=nearest, kbar=kbar, laid=laid,
                 times=d['times'][idx], e_mean_cm=float(d['e_mean_cm']), pattern=P, final=final, Ps=Ps)
 
 
@@ -71,16 +75,20 @@ def main():
     profs = [profile(f, rod['radius'], rod['L_gb']) for f in args.npz]
     out = results_path(args, Path(args.out).name)
     lines = [f'# Error profile along the pattern, `benchmarks/error_profile.py` ({", ".join(labels)})', '',
-             'Per stretch of the pattern (arc length from the free end): mean final error, mean error at touch-down, '
-             'mean motion on the table after touch-down (mm), largest |kappa_bar| of the pattern there.', '']
+             'Per stretch of the pattern (arc length from the free end): mean final error (Eq. 17\'s pairing at equal '
+             'arc length), mean distance to the nearest point of the pattern (the shape alone), mean error at '
+             'touch-down, mean motion on the table after touch-down (mm), largest |kappa_bar| of the pattern there.',
+             '']
     for lab, p in zip(labels, profs):
         lines += [f'## {lab}: e_mean (Eq. 17) {p["e_mean_cm"]:.3f} cm', '',
-                  '| s cm | final mm | at touch-down mm | moved after mm | max abs kappa_bar |', '|---|---|---|---|---|']
+                  '| s cm | final mm | nearest mm | at touch-down mm | moved after mm | max abs kappa_bar |',
+                  '|---|---|---|---|---|---|']
         edges = np.arange(0.0, p['s'][-1] + 1e-9, args.stretch_cm / 100)
         for a, b in zip(edges, np.append(edges[1:], p['s'][-1] + 1e-9)):
             m = (p['s'] >= a) & (p['s'] < b)
             if m.any():
                 lines.append(f'| {100 * a:.0f}-{100 * b:.0f} | {1e3 * p["err_final"][m].mean():.2f} | '
+                             f'{1e3 * p["nearest"][m].mean():.2f} | '
                              f'{1e3 * p["err_touch"][m].mean():.2f} | {1e3 * p["moved"][m].mean():.2f} | '
                              f'{p["kbar"][m].max():.2f} |')
         lines.append('')
@@ -104,6 +112,7 @@ def main():
     ax.set_title('top view; numbers: arc length from the free end [cm]', fontsize=9)
     for ax, lab, p in zip(axes[1:], labels, profs):
         ax.plot(100 * p['s'], 1e3 * p['err_final'], 'k-', label='final error')
+        ax.plot(100 * p['s'], 1e3 * p['nearest'], 'k:', label='distance to the pattern (shape alone)')
         ax.plot(100 * p['s'], 1e3 * p['err_touch'], 'tab:orange', label='error at touch-down')
         ax.plot(100 * p['s'], 1e3 * p['moved'], 'tab:purple', ls='--', label='moved on the table after')
         ax.set_ylabel('mm')
@@ -115,7 +124,7 @@ def main():
         ax.legend(fontsize=7, loc='upper left')
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(out, dpi=80)
+    fig.savefig(out, dpi=60)
     print(f'results: {out}')
 
 

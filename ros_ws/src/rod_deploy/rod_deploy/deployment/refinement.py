@@ -9,13 +9,24 @@ template T instead of the pattern P:
     T_0 = P,   T_{k+1} = T_best + gain * C(P - D_best),
 
 where D_best is the simulated deployment of the best template so far (lowest Eq. 17 e_mean, directed, from the
-free end), read at the same arc lengths from the free end as P (Eq. 17's pairing), and C a Gaussian low-pass along
-the arc length (sigma ``smoothing_m``). ``offset='normal'`` moves the template only along P's normal, by the
-signed distance of D from P there (the nearest point of D): a lag along the curve, which the template cannot
-remove, does not move it. The gain starts at ``gain`` and is halved after a worse prediction, a template the
+free end) and C a Gaussian low-pass along the arc length (sigma ``smoothing_m``) of the offsets, ramped up from 0 at
+the free end over ``start_taper_m`` (the template's first point stays on P's, where the free end is placed; without
+the ramp a large correction there hooked the template too sharply to plan, measured on a 0.3 m rod around a corner).
+The offsets (``offset``): ``'normal'`` (the default) moves the template only along P's normal, by the signed
+distance of D from P there (to D's nearest point), so that a lead or lag of the rod along the curve, which moving
+the template sideways cannot remove, does not move it; ``'arc_length'`` moves it by P(s) - D(s) at the same arc
+lengths (Eq. 17's pairing; what ``rod-deploy correct`` used before). Measured on the paper's 7 patterns (rod #3,
+medium friction, 4 simulations each, ``benchmarks/results/refine_{normal,arc}_rod3_medium.md``): mean e_mean in
+our DER 0.094 cm with normal offsets, 0.109 with arc-length ones (sine 0.051 against 0.130), replayed in PyElastica
+0.208 against 0.225 cm. The gain starts at ``gain`` and is halved after a worse prediction, a template the
 planner refuses or a simulation that fails; the loop stops after ``simulations`` simulations or when the gain is
-below ``min_gain``. The template's first point stays on P's (the free end is placed there). What is kept is the
-best trajectory simulated, the unrefined one included, so the predicted error never rises.
+below ``min_gain``. What is kept is the best trajectory simulated, the unrefined one included, so the predicted
+error never rises.
+
+What it exploits (``benchmarks/error_profile.py`` on the letter A): the error arises at the bends with |kappa_bar|
+near 1, where the laid rod is dragged on the table after touch-down by the suspended part (up to 13 mm); the
+refined plan lays the rod off the pattern there at touch-down so that the drag brings it onto it. That depends on
+the friction model, and it transfers only in part to PyElastica.
 
 Used by ``rod-deploy plan --refine N`` (the declared rod and friction: refinement of the planner itself) and by
 ``rod-deploy correct --replan --simulate`` (the fitted rod: pre-compensation of fitted effects the planner does not
@@ -67,7 +78,7 @@ class RefinementSettings:
     gain: float = 1.0                     # T_{k+1} = T_best + gain C(P - D_best); halved after a worse one
     min_gain: float = 0.2                 # stop once the gain falls below this
     smoothing_m: float = 0.02             # Gaussian low-pass of the correction along the arc length (sigma) [m]
-    offset: str = 'arc_length'            # 'arc_length' (Eq. 17's pairing) or 'normal' (P's normal only)
+    offset: str = 'normal'                # 'normal' (P's normal only) or 'arc_length' (Eq. 17's pairing)
     #: the correction ramps up from 0 at the free end over this arc length [m] (smoothstep; 0: a step at the first
     #: point, which stays on P's: a large correction there bends the template too sharply to plan)
     start_taper_m: float = 0.03
