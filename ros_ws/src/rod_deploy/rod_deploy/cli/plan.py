@@ -144,26 +144,13 @@ def _refine(args, points, rod, plan, settings):
 
     from rod_deploy.deployment.refinement import RefinementSettings, refine_plan
     from rod_deploy.deployment.simulate import FRICTION_LEVELS
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-        bar = tqdm(unit='step', disable=None, mininterval=0.5)
-
-    def progress(label, k, total):
-        if bar is not None:
-            if bar.desc != f'simulate: {label}':
-                bar.reset(total=total)
-                bar.set_description(f'simulate: {label}')
-            bar.update(k - bar.n)
-
+    from rod_deploy.cli.progress import simulations_progress
     try:
-        best, record = refine_plan(np.asarray(points)[:, :2], rod, plan, settings, None,     # simulate's defaults
-                                   RefinementSettings(simulations=args.refine - 1), progress)
+        with simulations_progress(args.quiet) as progress:
+            best, record = refine_plan(np.asarray(points)[:, :2], rod, plan, settings, None,   # simulate's defaults
+                                       RefinementSettings(simulations=args.refine - 1), progress)
     except ValueError as e:
         raise CliError(f'refining the plan: {e}') from None
-    finally:
-        if bar is not None:
-            bar.close()
     return best, {
         'simulations': record['simulations'], 'refined': best.replanned,
         'predicted_e_mean_cm_before': round(record['start_predicted_e_mean_cm'], 4),
