@@ -517,7 +517,9 @@ def main():
                             t, p, q = published_trajectory(name)
                             batch.append((t, p, q, tuple(P[0])))
                         else:
-                            plan = plan_trajectory(P, rod, PlannerSettings(method=method))
+                            # the planner told the row's friction (its friction-limited start), as in deployment_table
+                            plan = plan_trajectory(P, rod, PlannerSettings(method=method,
+                                                                           friction=FRICTION_LEVELS[fr]))
                             batch.append((plan.t, plan.position, plan.quaternion, None))
                         names.append(name)
                     except ValueError as exc:
