@@ -4,6 +4,8 @@ scored with Eq. 17 (N = 50).
     python benchmarks/deployment_table.py [--rods 2,3] [--friction medium] [--methods nn,intuitive,published]
                                           [--patterns all] [--start tangent|achievable] [--out-name NAME.md]
                                           [--plots] [--commit-results]
+    python benchmarks/deployment_table.py --methods nn_refined [--refine 3] [--refine-offset arc_length|normal]
+                                          [--refine-taper 0.03] [--save-traj DIR]
 
 Patterns: the paper's 7 (``../shared/reference/rod_deployment/patterns``, read in place when present) and shapes of
 our own made here by code (a spiral, the digit 2, the letter S, a loop that crosses itself; for the study of the
@@ -12,8 +14,12 @@ Table 1 (#1 pink VPS L_gb 1.8 cm h 1.6 mm L 0.875 m, #2 green VPS 3.2 / 1.6 / 0.
 Friction levels: low 0.2, medium 0.5, high 1.0. Planners: ours (``nn``, ``numeric``), the paper's ``intuitive``
 baseline, and ``published``: the released planner's trajectories for the 7 patterns (rod #3 only, the rod they
 were made for; replayed from the hanging pose above the pattern's first point). Our planners are told the row's
-table friction (``PlannerSettings.friction``: the friction-limited start, the default, depends on it). Writes a markdown table and a plot
-per case (``--plots``).
+table friction (``PlannerSettings.friction``: the friction-limited start, the default, depends on it).
+``nn_refined``: the nn plan refined with our DER in the loop (``rod_deploy.deployment.refinement``, what
+``rod-deploy plan --refine`` runs; ``--refine`` template simulations after the unrefined plan's), the row's deployment
+the best one simulated, its note the predicted e_mean before and after, the simulations and the CPU time.
+``--save-traj DIR`` writes every trajectory for ``pyelastica_replay.py --traj-dir``. Writes a markdown table and a
+plot per case (``--plots``).
 """
 from __future__ import annotations
 
@@ -27,6 +33,7 @@ import numpy as np
 
 from results_dir import add_results_argument, results_path
 from rod_deploy.deployment.metrics import eq17_error
+from rod_deploy.deployment.refinement import RefinementSettings, refine_plan
 from rod_deploy.deployment.simulate import (FRICTION_LEVELS, LAID_HEIGHT_TOLERANCE_M, SimulationSettings,
                                             simulate_deployment)
 from rod_deploy.planning.pattern_input import load_pattern
@@ -143,6 +150,17 @@ def main():
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
     ap.add_argument('--out-name', default='deployment_table.md', help='name of the results file')
+    ap.add_argument('--refine', type=int, default=4, metavar='N',
+                    help='method nn_refined: simulations of templates after the unrefined plan\'s (default 4)')
+    ap.add_argument('--refine-offset', default=RefinementSettings.offset, choices=('arc_length', 'normal'))
+    ap.add_argument('--refine-smoothing', type=float, default=RefinementSettings.smoothing_m,
+                    help='Gaussian sigma of the correction along the pattern [m]')
+    ap.add_argument('--refine-gain', type=float, default=RefinementSettings.gain)
+    ap.add_argument('--refine-taper', type=float, default=RefinementSettings.start_taper_m,
+                    help='the correction ramps up over this arc length from the free end [m]')
+    ap.add_argument('--save-traj', metavar='DIR',
+                    help='write every trajectory simulated as DIR/traj_PATTERN_METHOD_rodK_FRICTION.csv (for '
+                         'pyelastica_replay.py --traj-dir)')
     add_results_argument(ap)
     args = ap.parse_args()
     start_used = args.start or PlannerSettings().start
@@ -162,20 +180,48 @@ def main():
                         continue
                     t0 = time.perf_counter()
                     try:
+                        refined_note = ''
                         if method == 'published':
                             t, p, q = published_trajectory(name)
                             start = tuple(P[0])
+                        elif method == 'nn_refined':
+                            planner = PlannerSettings(friction=FRICTION_LEVELS[fr],
+                                                      **({'start': args.start} if args.start else {}))
+                            best, record = refine_plan(
+                                P, rod, plan_trajectory(P, rod, planner), planner,
+                                SimulationSettings(friction=FRICTION_LEVELS[fr],
+                                                   friction_velocity_m_s=args.friction_velocity),
+                                RefinementSettings(simulations=args.refine, offset=args.refine_offset,
+                                                   smoothing_m=args.refine_smoothing, gain=args.refine_gain,
+                                                   start_taper_m=args.refine_taper))
+                            t, p, q = best.deployment.t, best.deployment.position, best.deployment.quaternion
+                            start = None
+                            gains = ','.join(f'{h["gain"]:g}{"+" if h.get("accepted") else "-"}'
+                                             for h in record['iterations'])
+                            refined_note = (f'refined: predicted e_mean (directed) '
+                                            f'{record["start_predicted_e_mean_cm"]:.3f} -> '
+                                            f'{record["predicted_e_mean_cm"]:.3f} cm, {record["simulations"]} '
+                                            f'simulations, CPU {record["cpu_time_s"]:.0f} s, gains {gains}; ')
                         else:
                             plan = plan_trajectory(P, rod, PlannerSettings(
                                 method=method, friction=FRICTION_LEVELS[fr],
                                 **({'start': args.start} if args.start else {})))
                             t, p, q, start = plan.t, plan.position, plan.quaternion, None
-                        res = simulate_deployment(t, p, q, rod, SimulationSettings(
-                            friction=FRICTION_LEVELS[fr], start_xy=start,
-                            friction_velocity_m_s=args.friction_velocity))
+                        if args.save_traj:
+                            from rod_deploy.planning.trajectory_io import write_trajectory_csv
+                            Path(args.save_traj).mkdir(parents=True, exist_ok=True)
+                            write_trajectory_csv(Path(args.save_traj) / f'traj_{name}_{method}_rod{rod_id}_{fr}.csv',
+                                                 t, p, q)
+                        if method == 'nn_refined':      # the best trajectory's simulation, not run again
+                            res = best.result
+                        else:
+                            res = simulate_deployment(t, p, q, rod, SimulationSettings(
+                                friction=FRICTION_LEVELS[fr], start_xy=start,
+                                friction_velocity_m_s=args.friction_velocity))
                         e = eq17_error(P, res.deployed_xy)
                         row = (rod_id, fr, name, method, e['e_mean_cm'], e['sigma_cm'], e['coverage'],
-                               res.wall_time_s, f'laid strain {100 * laid_strain(res, rod.length_m):.2f} %; Newton '
+                               time.perf_counter() - t0 if refined_note else res.wall_time_s,
+                               f'{refined_note}laid strain {100 * laid_strain(res, rod.length_m):.2f} %; Newton '
                                f'max {res.max_newton_iterations}, halved steps {res.halved_steps}')
                         if args.plots:
                             from rod_deploy.deployment.plots import plot_deployment

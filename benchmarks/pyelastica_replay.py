@@ -431,6 +431,7 @@ def read_our_table(path):
 def main():
     from deployment_table import REF, RODS, all_patterns, published_trajectory
     from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+    from rod_deploy.planning.trajectory_io import read_trajectory_csv
 
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--validate', action='store_true', help='only the closed-form checks')
@@ -450,6 +451,9 @@ def main():
                          "no creep); centreline: on the elements with PyElastica's slip-tolerance switch "
                          "(CentrelineCoulombPlane, creeps); pyelastica: PyElastica's anisotropic friction (creeps, "
                          'and rolls sideways)')
+    ap.add_argument('--traj-dir', metavar='DIR',
+                    help='read each trajectory from DIR/traj_PATTERN_METHOD_rodK_FRICTION.csv (written by '
+                         'deployment_table.py --save-traj; e.g. the method nn_refined) instead of planning it')
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--tag', default='', help='suffix of the results files')
     ap.add_argument('--merge', nargs='+', metavar='JSON',
@@ -504,12 +508,20 @@ def main():
                     if method == 'published' and (rod_id != 3 or not (REF / 'reference_outputs' /
                                                                       f'{name}_traj_NN.txt').exists()):
                         continue
+                    saved = Path(args.traj_dir or '.') / f'traj_{name}_{method}_rod{rod_id}_{fr}.csv'
                     try:
-                        if method == 'published':
+                        if args.traj_dir:
+                            if not saved.exists():
+                                raise ValueError(f'no saved trajectory {saved}')
+                            t, p, q = read_trajectory_csv(saved)
+                            batch.append((t, p, q, tuple(P[0]) if method == 'published' else None))
+                        elif method == 'published':
                             t, p, q = published_trajectory(name)
                             batch.append((t, p, q, tuple(P[0])))
                         else:
-                            plan = plan_trajectory(P, rod, PlannerSettings(method=method))
+                            # the planner told the row's friction (its friction-limited start), as in deployment_table
+                            plan = plan_trajectory(P, rod, PlannerSettings(method=method,
+                                                                           friction=FRICTION_LEVELS[fr]))
                             batch.append((plan.t, plan.position, plan.quaternion, None))
                         names.append(name)
                     except ValueError as exc:

@@ -19,10 +19,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def load_case(pattern, method, rod):
+def load_case(pattern, method, rod, traj=None):
     from deployment_table import all_patterns, published_trajectory
     from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
     P = all_patterns(pattern)[pattern]
+    if traj:                         # a saved trajectory (deployment_table.py --save-traj) starting at a hanging pose
+        from rod_deploy.planning.trajectory_io import read_trajectory_csv
+        return P, (*read_trajectory_csv(traj), None)
     if method == 'published':
         t, p, q = published_trajectory(pattern)
         return P, (t, p, q, tuple(P[0]))
@@ -83,10 +86,11 @@ def main():
     ap.add_argument('--friction', default='medium')
     ap.add_argument('--every', type=float, default=1.0, help='snapshot period [simulated s]')
     ap.add_argument('--set', nargs='*', default=[], help='settings overrides name=value')
+    ap.add_argument('--traj', help='replay this trajectory CSV (starting at a hanging pose) instead of planning one')
     ap.add_argument('--out', required=True)
     args = ap.parse_args()
     rod = rod_description_from_dict(RODS[args.rod])
-    P, case = load_case(args.pattern, args.method, rod)
+    P, case = load_case(args.pattern, args.method, rod, args.traj)
     sets = dict(kv.split('=', 1) for kv in args.set)
     cpu = time.process_time()
     run = run_elastica if args.sim == 'elastica' else run_der

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rod_deploy.cli.main import main as cli
-from rod_deploy.deployment import correction
+from rod_deploy.deployment import correction, refinement
 from rod_deploy.deployment.correction import CorrectionSettings, Deployment, correct, diagnose
 from rod_deploy.deployment.metrics import eq17_error, write_deployed_csv
 from rod_deploy.deployment.simulate import SimulationSettings, simulate_deployment
@@ -41,7 +41,7 @@ def _stand_in(t, position, quaternion, rod, settings=None, progress=None):
 
 @pytest.fixture
 def stand_in(monkeypatch):
-    monkeypatch.setattr(correction, 'simulate_deployment', _stand_in)
+    monkeypatch.setattr(refinement, 'simulate_deployment', _stand_in)
     return Deployment(np.zeros(2), np.zeros((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1)), tuple(PATTERN[0]))
 
 
@@ -145,7 +145,7 @@ def test_cli_bad_input_is_one_error_line_and_writes_nothing(tmp_path, capsys, ex
 
 
 def test_cli_writes_the_report_and_the_plot(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(correction, 'simulate_deployment', _stand_in)
+    monkeypatch.setattr(refinement, 'simulate_deployment', _stand_in)
     f = _files(tmp_path)
     observed = _stand_in(None, None, None, correction.rod_with(ROD, {'L_gb_m': 0.04})).deployed_xy
     write_deployed_csv(f['d'], observed)
@@ -189,36 +189,6 @@ def test_a_fitted_natural_curvature_is_precompensated_and_the_true_rod_lays_it_b
     e_after = eq17_error(LINE, after, directed=True)['e_mean_cm']
     assert rp.predicted_e_mean_cm == pytest.approx(e_after, abs=1e-3)      # the fitted model is the true one here
     assert e_after < 0.5 * e_before
-
-
-def test_precompensation_converges_on_a_stand_in_and_survives_a_failed_simulation(monkeypatch):
-    """Stand-in: the planner lays exactly the template it is given, shifted by a smooth bias (what the planner does
-    not model); the loop must move the template against the bias, keep the best, and treat a failed simulation (the
-    second one here) as a worse template, not abort."""
-    bias = lambda xy: np.column_stack([0.002 * np.ones(len(xy)), 0.004 * np.sin(20.0 * xy[:, 0])])  # noqa: E731
-    calls = {'n': 0}
-
-    def plan(points, rod, settings):
-        p = np.asarray(points, float)
-        return SimpleNamespace(t=np.arange(len(p), dtype=float), position=np.column_stack([p, np.zeros(len(p))]),
-                               quaternion=np.tile([1.0, 0, 0, 0], (len(p), 1)))
-
-    def lay(t, position, quaternion, rod, settings=None, progress=None):
-        calls['n'] += 1
-        if calls['n'] == 2:
-            raise correction.DeploymentError('diverged (stand-in)')
-        return SimpleNamespace(deployed_xy=position[:, :2] + bias(position[:, :2]))
-
-    monkeypatch.setattr(correction, 'plan_trajectory', plan)
-    monkeypatch.setattr(correction, 'simulate_deployment', lay)
-    first = plan(LINE, ROD, None)
-    d0 = LINE + bias(LINE)
-    e0 = eq17_error(LINE, d0, directed=True)['e_mean_cm']
-    start = (e0, Deployment(first.t, first.position, first.quaternion, tuple(LINE[0])), d0, False, None)
-    best, n, record = correction.precompensate(LINE, ROD, ROD, start, PlannerSettings(), FAST)
-    assert n == 4 and len(record['iterations']) == 4
-    assert record['iterations'][1]['accepted'] is False and 'diverged' in record['iterations'][1]['note']
-    assert best[3] and best[0] < 0.3 * e0
 
 
 def test_a_negative_natural_curvature_on_a_left_turn_is_named_with_its_sign():

@@ -104,29 +104,16 @@ def run(args) -> int:
         rod = dataclasses.replace(rod, friction=args.friction)
     sim = SimulationSettings(edge_length_m=args.edge_length, dt_s=args.dt, max_gripper_speed_m_s=args.speed,
                              contact_tolerance_m=5e-4)   # a free end curled up by 0.1 mm still counts
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
-        bar = tqdm(unit='step', disable=None, mininterval=0.5)
-
-    def progress(label, k, total):
-        if bar is not None:
-            if bar.desc != f'simulate: {label}':
-                bar.reset(total=total)
-                bar.set_description(f'simulate: {label}')
-            bar.update(k - bar.n)
-
+    from rod_deploy.cli.progress import simulations_progress
     try:
         from rod_deploy.planning.trajectory import PlannerSettings
         planner = PlannerSettings(**({'start': args.start} if args.start else {}))
-        report, diag, rp = correct(pattern, rod, observed, deployment, planner_settings=planner, sim_settings=sim,
-                                   settings=settings, replan_trajectory=args.replan, simulate=args.simulate,
-                                   progress=progress)
+        with simulations_progress(args.quiet) as progress:
+            report, diag, rp = correct(pattern, rod, observed, deployment, planner_settings=planner,
+                                       sim_settings=sim, settings=settings, replan_trajectory=args.replan,
+                                       simulate=args.simulate, progress=progress)
     except ValueError as e:
         raise CliError(str(e)) from None
-    finally:
-        if bar is not None:
-            bar.close()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     files = {'report': str(out / 'report.json'), 'plot': str(out / 'correction.png'),

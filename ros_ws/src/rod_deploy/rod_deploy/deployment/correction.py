@@ -35,12 +35,11 @@ replanned trajectory is simulated with the fitted rod and kept only if it is pre
 original one; if not, and L_gb was fitted, the planner's L_gb on the other side of the declared one is tried (the
 planner has its own bias in L_gb on short rods, which the fitted model shows). A fitted natural curvature or lower
 friction is not in the planner's model; with ``simulate`` it is pre-compensated with the FITTED simulator in the loop
-(:func:`precompensate`): plan for a template T (T_0 = the pattern P, with the best trajectory so far), simulate it
-with the fitted rod (deployment D), T_{k+1} = T_best + gain (P - D_best) read at the same arc lengths (P - D
-smoothed along the pattern, Gaussian sigma 2 cm; gain 1, halved after a worse prediction or a failed simulation; the
-first point kept on P's), at most 4 simulations, the trajectory predicted best kept (the original included); the
-iteration is erratic (benchmarks/results/natural_curvature_correction.md). Without ``simulate`` nothing is
-pre-compensated.
+(``rod_deploy.deployment.refinement.refine``, the code path of ``rod-deploy plan --refine``): plan for a template T
+(T_0 = the pattern P, with the best trajectory so far), simulate it with the fitted rod (deployment D),
+T_{k+1} = T_best + gain (P - D_best) (``RefinementSettings``' defaults), at most 4 simulations, the trajectory
+predicted best kept (the original included); the iteration is erratic
+(benchmarks/results/natural_curvature_correction.md). Without ``simulate`` nothing is pre-compensated.
 
 Why not plan with an effective curvature kappa_pattern - kappa0: the laid rod's material frame is not fixed
 (``benchmarks/natural_curvature_frame.py``): a clean rod lies with d1 up (the frame the simulator's
@@ -62,7 +61,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rod_deploy.deployment.metrics import arc_length, eq17_error
-from rod_deploy.deployment.simulate import DeploymentError, SimulationSettings, simulate_deployment
+from rod_deploy.deployment.refinement import (Candidate, Deployment, ForwardModel, RefinementSettings, refine,
+                                              sample)
+from rod_deploy.deployment.simulate import DeploymentError, SimulationSettings
 from rod_deploy.planning.rod_description import RodDescription
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
 
@@ -147,15 +148,6 @@ class CorrectionSettings:
 
 
 @dataclass
-class Deployment:
-    """A trajectory and where its free end starts (the forward model's input)."""
-    t: np.ndarray
-    position: np.ndarray
-    quaternion: np.ndarray
-    start_xy: tuple
-
-
-@dataclass
 class Diagnosis:
     effects_added: list
     fitted: dict                    # {parameter key: value} of the added effects
@@ -177,37 +169,6 @@ def orient_observed(pattern_xy, observed_xy):
     if np.linalg.norm(observed_xy[-1] - p0) < np.linalg.norm(observed_xy[0] - p0):
         return observed_xy[::-1].copy()
     return observed_xy
-
-
-def sample(xy, s):
-    """Points of the polyline ``xy`` at arc lengths ``s`` from its first point (held at its end beyond it)."""
-    sd = arc_length(xy)
-    return np.column_stack([np.interp(s, sd, xy[:, k]) for k in range(2)])
-
-
-class ForwardModel:
-    """The deployment simulator replaying one trajectory, for rods with candidate parameters."""
-
-    def __init__(self, deployment: Deployment, sim_settings: SimulationSettings, progress=None):
-        self.deployment = deployment
-        self.settings = dataclasses.replace(sim_settings, start_xy=deployment.start_xy)
-        self.progress = progress
-        self.count = 0
-
-    def deployed(self, rod: RodDescription, label='') -> np.ndarray:
-        d = self.deployment
-        settings = self.settings
-        if settings.friction is not None and rod.friction is not None:
-            settings = dataclasses.replace(settings, friction=None)     # the rod's (fitted) friction
-        cb = (lambda k, n: self.progress(label, k, n)) if self.progress else None
-        try:
-            result = simulate_deployment(d.t, d.position, d.quaternion, rod, settings, cb)
-        except DeploymentError as e:
-            raise CorrectionError(f'simulating the deployment ({label or "model"}) failed: {e}') from None
-        self.count += 1
-        if len(result.deployed_xy) < 2:
-            raise CorrectionError(f'the simulated deployment ({label or "model"}) laid nothing on the table')
-        return result.deployed_xy
 
 
 def _bic(rss, n, k, floor2):
@@ -258,7 +219,7 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
         for h in (e.step(rod), 0.5 * e.step(rod)):      # a rod curled off the table: a smaller step
             try:
                 d = model.deployed(rod_with(rod, {e.key: e.nominal(rod) + h}), f'{e.key} + {h:.3g}')
-            except CorrectionError as err:
+            except DeploymentError as err:
                 failed = str(err)
                 continue
             J[:, j] = (sample(d, s) - sample(nominal_xy, s)).ravel() / h
@@ -318,7 +279,7 @@ def diagnose(pattern_xy, rod: RodDescription, deployment: Deployment, observed_x
                 trial_rod = rod_with(rod, values)
                 try:
                     d = model.deployed(trial_rod, 'fitted ' + ', '.join(values) + (' (2nd step)' if attempt else ''))
-                except CorrectionError:                 # failed or laid nothing: not confirmed
+                except DeploymentError:                 # failed or laid nothing: not confirmed
                     budget -= 1
                     break
                 budget -= 1
@@ -399,98 +360,24 @@ class Replan:
     precompensation: dict | None = None
 
 
-@dataclass
-class PrecompensationSettings:
-    """Model-based iterative pre-compensation (:func:`precompensate`)."""
-    iterations: int = 4                   # simulations at most (one per planned template)
-    gain: float = 1.0                     # P_{k+1} = P_best + gain (P - D_best); halved after a worse one
-    min_gain: float = 0.2                 # stop once the gain falls below this
-    smoothing_m: float = 0.02             # Gaussian low-pass of the correction P - D along the arc length (sigma)
-
-
-def precompensate(pattern_xy, rod: RodDescription, planner_rod: RodDescription, start, planner_settings,
-                  sim_settings, settings: PrecompensationSettings | None = None, progress=None):
-    """Plan for a modified pattern so that the FITTED simulator lays the rod on the pattern P.
-
-    ``start`` = (e_mean, Deployment, predicted deployment, replanned, planner L_gb): the best trajectory so far and
-    the fitted model's deployment of it, D_0; its template is P itself. Each iteration plans the template
-    T = T_best + gain (P - D_best) (P and D read at the same arc lengths from the free end, the template's first
-    point kept on P's: the free end is placed there; P - D smoothed by ``settings.smoothing_m``), simulates it with
-    the fitted rod (``rod``) and keeps it if its Eq. 17 e_mean (directed) is lower; otherwise (or when the
-    simulation fails or lays nothing) the gain is halved. The planner gets ``planner_rod`` (what it models: L_gb,
-    the friction of the start). Returns (best, simulations, record)."""
-    settings = settings or PrecompensationSettings()
-    from scipy.ndimage import gaussian_filter1d
-
-    from rod_deploy.planning.trajectory import PlanningError
-    P = np.asarray(pattern_xy, float)[:, :2]
-    t0 = time.perf_counter()
-    length = float(arc_length(P)[-1])
-    s = np.linspace(0.0, length, max(20, int(math.ceil(length / planner_settings.step_m)) + 1))
-    target = sample(P, s)
-    best, best_template = start, target
-    gain, count, history = settings.gain, 0, []
-    for k in range(settings.iterations):
-        if gain < settings.min_gain:
-            break
-        step = target - sample(best[2], s)
-        if settings.smoothing_m > 0:
-            step = gaussian_filter1d(step, settings.smoothing_m / (s[1] - s[0]), axis=0, mode='nearest')
-        template = best_template + gain * step
-        template[0] = target[0]
-        entry = {'iteration': k + 1, 'gain': gain}
-        try:
-            planned = plan_trajectory(template, planner_rod, planner_settings)
-        except PlanningError as e:
-            entry.update(accepted=False, note=f'not plannable: {e}')
-            history.append(entry)
-            gain *= 0.5
-            continue
-        dep = Deployment(planned.t, planned.position, planned.quaternion, tuple(template[0]))
-        model = ForwardModel(dep, sim_settings, progress)
-        try:
-            d = model.deployed(rod, f'pre-compensated plan {k + 1}, fitted rod')
-        except CorrectionError as e:             # failed, or laid nothing: a worse template
-            count += 1
-            entry.update(accepted=False, note=str(e))
-            history.append(entry)
-            gain *= 0.5
-            continue
-        count += 1
-        e = eq17_error(P, d, directed=True)['e_mean_cm']
-        entry.update(predicted_e_mean_cm=e, template_shift_max_mm=1e3 * float(np.max(np.linalg.norm(
-            template - target, axis=1))), accepted=bool(e < best[0]))
-        history.append(entry)
-        if e < best[0]:
-            best, best_template = (e, dep, d, True, planner_rod.gravito_bending_length_m), template
-        else:
-            gain *= 0.5
-    record = {'method': 'model-based iterative pre-compensation: plan for T_k, simulate with the fitted rod, '
-                        'T_{k+1} = T_best + gain (P - D_best), gain halved after a worse prediction, best kept',
-              'iterations': history, 'simulations': count, 'wall_time_s': time.perf_counter() - t0,
-              'start_predicted_e_mean_cm': start[0], 'predicted_e_mean_cm': best[0],
-              'template_kept': best_template is not target}
-    return best, count, record
-
-
 #: fitted parameters the planner takes directly; the others are pre-compensated with the fitted simulator
 PLANNER_MODELS = ('L_gb_m',)
 
 
 def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_settings: PlannerSettings,
            sim_settings: SimulationSettings, simulate=True, progress=None,
-           precompensation: PrecompensationSettings | None = None) -> Replan:
+           precompensation: RefinementSettings | None = None) -> Replan:
     """The trajectory planned with the fitted rod; with ``simulate``, its deployment predicted by the fitted
     simulator (module doc). When that is predicted no better than the original trajectory and L_gb was fitted,
     the planner's L_gb is also tried on the other side of the declared one (declared^2 / fitted: the planner's own
     bias in L_gb, seen through the fitted model); the trajectory predicted best is kept, the original included.
     Fitted effects the planner does not model (natural curvature, friction) are then pre-compensated with the
-    fitted simulator in the loop (:func:`precompensate`; only with ``simulate``)."""
+    fitted simulator in the loop (``refinement.refine`` with the fitted rod; only with ``simulate``)."""
     pattern_xy = np.asarray(pattern_xy, float)
     rod = diagnosis.rod
     unmodelled = [k for k in diagnosis.fitted if k not in PLANNER_MODELS]
     e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
-    best = (e_old, deployment, diagnosis.fitted_xy, False, None)
+    best = Candidate(e_old, deployment, diagnosis.fitted_xy)
     count = 0
     if 'L_gb_m' in diagnosis.fitted:
         planned = plan_trajectory(pattern_xy, rod, planner_settings)
@@ -501,7 +388,7 @@ def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_set
                         if e['key'] == 'L_gb_m')
         knobs = [rod.gravito_bending_length_m, declared ** 2 / rod.gravito_bending_length_m]
         for k, planner_lgb in enumerate(knobs):
-            if k > 0 and best[3]:
+            if k > 0 and best.replanned:
                 break                                # the fitted rod's plan already does better than the original
             if k > 0:
                 planned = plan_trajectory(pattern_xy, rod_with(rod, {'L_gb_m': planner_lgb}), planner_settings)
@@ -510,23 +397,23 @@ def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_set
             d = model.deployed(rod, f'corrected plan (planner L_gb {1e3 * planner_lgb:.1f} mm), fitted rod')
             count += 1
             e = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
-            if e < best[0]:
-                best = (e, Deployment(planned.t, planned.position, planned.quaternion, tuple(pattern_xy[0])), d,
-                        True, planner_lgb)
+            if e < best.e_mean_cm:
+                best = Candidate(e, model.deployment, d, True, planner_lgb, planned)
     record = None
     if unmodelled and simulate:
-        planner_rod = rod if best[4] is None else rod_with(rod, {'L_gb_m': best[4]})
-        best, n, record = precompensate(pattern_xy, rod, planner_rod, best, planner_settings, sim_settings,
-                                        precompensation, progress)
+        planner_rod = rod if best.planner_L_gb_m is None else rod_with(rod, {'L_gb_m': best.planner_L_gb_m})
+        best, n, record = refine(pattern_xy, rod, planner_rod, best, planner_settings, sim_settings,
+                                 precompensation, progress, label='pre-compensated plan, fitted rod:')
         count += n
-    e, dep, d, replanned, planner_lgb = best
-    return Replan(dep.t, dep.position, dep.quaternion, replanned, d, e, e_old, count, planner_lgb, record)
+    dep = best.deployment
+    return Replan(dep.t, dep.position, dep.quaternion, best.replanned, best.deployed_xy, best.e_mean_cm, e_old,
+                  count, best.planner_L_gb_m, record)
 
 
 def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment | None = None,
             planner_settings: PlannerSettings | None = None, sim_settings: SimulationSettings | None = None,
             settings: CorrectionSettings | None = None, replan_trajectory=True, simulate=True, progress=None,
-            precompensation: PrecompensationSettings | None = None):
+            precompensation: RefinementSettings | None = None):
     """diagnose + replan; returns (report dict, Diagnosis, Replan or None)."""
     t0 = time.perf_counter()
     settings = settings or CorrectionSettings()

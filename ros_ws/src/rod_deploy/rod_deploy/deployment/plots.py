@@ -8,10 +8,20 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def plot_plan(path, plan):
-    """Top view (pattern, gripper path) and side view (gripper height along the pattern)."""
+def plot_plan(path, plan, pattern_xy=None, predicted_xy=None, predicted_e_mean_cm=None):
+    """Top view (pattern, gripper path) and side view (gripper height along the pattern). A refined plan
+    (``rod-deploy plan --refine``): ``plan`` is the template's, drawn with the pattern ``pattern_xy`` and the
+    simulator's predicted deployment ``predicted_xy``."""
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.6))
     P, g = plan.pattern.xy, plan.position
+    if pattern_xy is not None:
+        Q = np.asarray(pattern_xy, float)
+        a.plot(Q[:, 0], Q[:, 1], '-', color='tab:green', lw=4, alpha=0.4, label='pattern')
+    if predicted_xy is not None:
+        D = np.asarray(predicted_xy, float)
+        a.plot(D[:, 0], D[:, 1], '--', color='tab:blue', lw=1.2,
+               label='predicted deployment (our DER)' + (f', e_mean {predicted_e_mean_cm:.3f} cm'
+                                                         if predicted_e_mean_cm is not None else ''))
     k = plan.first_grasp_index
     replaced_m, dev_m = plan.start_replacement() if hasattr(plan, 'start_replacement') else (0.0, 0.0)
     if replaced_m > 0:       # the friction-limited start: draw the pattern as given and the curve planned instead
@@ -20,7 +30,8 @@ def plot_plan(path, plan):
         a.plot(P[:, 0], P[:, 1], 'k-', lw=1.5, label=f'planned curve: the first {100 * replaced_m:.0f} cm replaced '
                                                       f'(up to {1000 * dev_m:.0f} mm off)')
     else:
-        a.plot(P[:, 0], P[:, 1], 'k-', lw=2, label='pattern (smoothed, resampled)')
+        a.plot(P[:, 0], P[:, 1], 'k-', lw=2, label='pattern (smoothed, resampled)' if pattern_xy is None else
+               'template planned for (refined)')
     a.plot(g[:k + 1, 0], g[:k + 1, 1], ':', color='tab:gray', label='lead-in from the hanging pose')
     a.plot(g[k:, 0], g[k:, 1], '-', color='tab:red', lw=1.2, label=f'gripper ({plan.method})')
     a.plot(P[0, 0], P[0, 1], 'o', color='k', ms=5, label='start (free end)')
