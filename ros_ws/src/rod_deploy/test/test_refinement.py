@@ -19,11 +19,12 @@ from rod_deploy.planning.trajectory_io import read_trajectory_csv
 ROD = rod_description_from_dict({'length': 0.3, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
 LINE = np.column_stack([np.linspace(0.0, 0.15, 31), np.zeros(31)])
 FAST = SimulationSettings(edge_length_m=0.01, dt_s=0.1, max_gripper_speed_m_s=0.03, contact_tolerance_m=5e-4)
-#: 4 cm straight, a left turn of 90 degrees on a radius of 3 cm, 4 cm straight (a rounded corner)
+#: 10 cm straight, a left turn of 90 degrees on a radius of 5 cm, 3 cm straight (a rounded corner; the lead is long
+#: enough for friction 0.5 to hold the bend's moment: a 4 cm lead into a 3 cm radius is refused by the planner)
 _a = np.linspace(0.0, 0.5 * np.pi, 25)[1:]
-CORNER = np.vstack([np.column_stack([np.linspace(0.0, 0.04, 9), np.zeros(9)]),
-                    np.column_stack([0.04 + 0.03 * np.sin(_a), 0.03 * (1 - np.cos(_a))]),
-                    np.column_stack([np.full(8, 0.07), 0.03 + np.linspace(0.0, 0.04, 9)[1:]])])
+CORNER = np.vstack([np.column_stack([np.linspace(0.0, 0.10, 21), np.zeros(21)]),
+                    np.column_stack([0.10 + 0.05 * np.sin(_a), 0.05 * (1 - np.cos(_a))]),
+                    np.column_stack([np.full(6, 0.15), 0.05 + np.linspace(0.0, 0.03, 7)[1:]])])
 
 
 def _stand_in_planner(points, rod, settings):
