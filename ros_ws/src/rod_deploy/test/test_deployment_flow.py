@@ -11,6 +11,7 @@ import sys
 import time
 
 import numpy as np
+from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
@@ -18,7 +19,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
-from trajectory_msgs.msg import JointTrajectory
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import MarkerArray
 
 from robot_bridge.nodes.arm_command_bridge import ArmCommandBridge
@@ -145,6 +146,27 @@ def test_a_command_that_no_arm_executes_fails_at_execution(ros_context, wait_for
     assert wait_for(lambda: client.results, timeout_s=60)
     result = client.results[-1]
     assert len(client.commands) == 1 and result['stage'] == 'execution' and 'no /joint_states' in result['error']
+
+
+def test_a_command_delivered_before_its_gripper_trajectory_is_not_lost(ros_context, tmp_path):
+    """The bridge and the monitor both take /gripper_trajectory; when the monitor's executor is behind (a loaded
+    machine: /joint_states at 1 kHz), the bridge's command can be handled before the trajectory it answers. The
+    monitor dropped it and timed out at 'arm_command' 300 s later (a CI run at load ~5); now it keeps it."""
+    monitor = ros_context.add(DeploymentMonitor(context=ros_context.context, parameter_overrides=ROD + REACHABLE_TABLE
+                                                + [Parameter('out', value=str(tmp_path)), *COARSE_ROD_SIMULATION]))
+    monitor._on_pattern(path_msg(LINE))
+    trajectory = path_msg(LINE)
+    for k, pose in enumerate(trajectory.poses):
+        pose.header.stamp.sec = k
+        pose.pose.position.z = 0.1
+    joints = list(monitor.planner.arm.joint_names)
+    command = JointTrajectory(joint_names=joints, points=[
+        JointTrajectoryPoint(positions=[0.0] * len(joints), time_from_start=Duration(sec=k)) for k in range(len(LINE))])
+    monitor._on_command(command)
+    assert monitor._request['stage'] == 'planning'
+    monitor._on_gripper_trajectory(trajectory)
+    assert monitor._request['stage'] == 'execution'
+    assert monitor._request['command'][0][-1] == len(LINE) - 1
 
 
 BIN = os.path.dirname(sys.executable)

@@ -161,28 +161,41 @@ class DeploymentMonitor(Node):
             r['t']['trajectory'] = time.monotonic()
             self._markers['planned'] = line_strip('planned_gripper_path', 0, planned[1], 'red', 0.003, 'table')
             self._publish_markers_locked()
+            early = r.pop('early_command', None)
+            if early is not None:                # the bridge's command was delivered before its gripper trajectory
+                self._accept_command_locked(r, early)
 
     def _on_command(self, msg: JointTrajectory):
         if not msg.points:
             return
-        tfs = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in msg.points])
-        q_cmd = np.array([p.positions for p in msg.points])
         with self._lock:
             r = self._request
-            if r is None or r['stage'] != 'arm_command' or len(msg.points) != len(r['planned'][0]):
+            if r is not None and r['stage'] == 'planning':
+                # the bridge plans from /gripper_trajectory too: on a loaded machine its command can be delivered
+                # here before the trajectory it answers; kept until that trajectory arrives (the latest one)
+                r['early_command'] = msg
                 return
-            try:
-                order = [list(msg.joint_names).index(j) for j in self.planner.arm.joint_names]
-            except ValueError:
-                self._fail_locked('arm_command', f'the command lacks some of the joints '
-                                  f'{self.planner.arm.joint_names}')
+            if r is None or r['stage'] != 'arm_command':
                 return
-            guess = self._recent[-1][0] if self._recent else None
-            r.update(stage='execution', command=(tfs, q_cmd[:, order]), guess=guess,
-                     samples=list(self._recent), last_joint_state=time.monotonic())
-            r['t']['command'] = time.monotonic()
-            self._markers.update(self._arm_pose_markers(q_cmd[:, order]))
-            self._publish_markers_locked()
+            self._accept_command_locked(r, msg)
+
+    def _accept_command_locked(self, r: dict, msg: JointTrajectory):
+        if len(msg.points) != len(r['planned'][0]):
+            return
+        tfs = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in msg.points])
+        q_cmd = np.array([p.positions for p in msg.points])
+        try:
+            order = [list(msg.joint_names).index(j) for j in self.planner.arm.joint_names]
+        except ValueError:
+            self._fail_locked('arm_command', f'the command lacks some of the joints '
+                              f'{self.planner.arm.joint_names}')
+            return
+        guess = self._recent[-1][0] if self._recent else None
+        r.update(stage='execution', command=(tfs, q_cmd[:, order]), guess=guess,
+                 samples=list(self._recent), last_joint_state=time.monotonic())
+        r['t']['command'] = time.monotonic()
+        self._markers.update(self._arm_pose_markers(q_cmd[:, order]))
+        self._publish_markers_locked()
 
     def _on_joint_states(self, msg: JointState):
         sample = (_stamp_s(msg), list(msg.name), list(msg.position))
