@@ -374,7 +374,7 @@ def write_report(out, rows, errs, total_s, elastica=None):
              f'Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (load average '
              f'{os.getloadavg()[0]:.1f} at the end); {total_s:.0f} s in all. Each command is its own `rod-deploy` '
              'process, timed from outside (wall clock; CPU in brackets). Shapes drawn by code in the script, '
-             'never used to develop or tune anything. Simulation: our DER with the CLI defaults (5 mm edges, dt 0.05 '
+             'never used to develop or tune anything. Simulation: our DER with the CLI defaults (5 mm edges, dt 0.02 '
              's, 0.01 m/s); friction 0.5 from the rod file. Eq. 17 e_mean / sigma in cm (N = 50, the better '
              'direction). "free end": how far the deployed curve\'s first node lies from the pattern\'s first point. '
              '"start replaced": the friction-limited start (the default) replaces the first cm of the pattern, up to '
