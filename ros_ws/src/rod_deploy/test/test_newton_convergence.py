@@ -4,22 +4,12 @@ import numpy as np
 import pytest
 
 from rod_deploy.deployment.simulate import DeploymentError, SimulationSettings, simulate_deployment
-from rod_deploy.physics.der_simulator import DiscreteElasticRod, NewtonNotConverged, RodParameters
+from rod_deploy.physics.der_simulator import DiscreteElasticRod, NewtonNotConverged
 from rod_deploy.planning.rod_description import rod_description_from_dict
 
 
-def _cantilever(N=12):
-    x = np.c_[np.linspace(0, 1, N + 1), np.zeros(N + 1), np.zeros(N + 1)]
-    rod = DiscreteElasticRod(x, RodParameters(EI=0.05, EA=500.0, GJ=0.03, rho_A=1.0, radius=0.01,
-                                              gravity=(0, 0, -1)))
-    rod.clamp_node(0)
-    rod.clamp_node(1)
-    rod.clamp_theta(0)
-    return rod
-
-
-def test_a_step_that_does_not_converge_is_refused_and_the_state_kept():
-    rod = _cantilever()
+def test_a_step_that_does_not_converge_is_refused_and_the_state_kept(clamped_cantilever):
+    rod = clamped_cantilever()
     q, u, t = rod.state.q.copy(), rod.state.u.copy(), rod.state.time
     with pytest.raises(NewtonNotConverged, match='did not converge') as err:
         rod.step(0.2, max_iter=1)                # a large, nonlinear step: one Newton iteration is not enough
