@@ -24,3 +24,22 @@ def test_no_edge_where_the_profile_never_falls_or_the_centre_is_background():
     for profile in (flat, dark, one_sided):
         e_l, e_r = edge_positions(profile, offsets, floor=20.0, core_px=2.0)
         assert np.isnan(e_l[0]) and np.isnan(e_r[0])
+
+
+def test_free_end_is_placed_at_the_rod_not_at_its_shadow_beyond():
+    """A rod's shadow beyond its free end holds the evidence at 20-30 % of the rod's: the end goes half a
+    width inside the rod's own boundary, not left where thinning ran out (nor at the shadow's edge)."""
+    import cv2
+
+    from rod_deploy.perception.centreline import RefinedPath, place_ends
+    width, tip_col = 11, 100.0
+    for shadow in (0.2, 0.3):
+        evidence = np.zeros((100, 200), np.float32)
+        evidence[45:56, 20:100] = 200.0                     # the rod, its flat end at column 100
+        evidence[45:56, 100:135] = shadow * 200.0           # its shadow on the table beyond the end
+        evidence = cv2.GaussianBlur(evidence, (7, 7), 1.2)
+        pts = np.c_[np.full(71, 50.0), np.linspace(30.0, tip_col, 71)]       # thinning reached the tip
+        out = place_ends(RefinedPath(pts, float(width), False, np.full(71, np.nan)), evidence, 10.0,
+                         0.5 * width, float(width)).points
+        assert abs(out[-1, 1] - (tip_col - 0.5 * width)) < 1.0, (shadow, out[-1])
+        assert abs(out[-1, 0] - 50.0) < 0.5

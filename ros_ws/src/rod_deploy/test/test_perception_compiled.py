@@ -218,14 +218,15 @@ def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):
                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
         peak = float(vals[:8].max())
         below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
-        if below.any():
-            k15 = int(np.argmax(below))
-            if k15 == 0:
+        foot = (vals < max(0.35 * peak, floor)) & inside
+        if foot.any():
+            k35 = int(np.argmax(foot))
+            if below.any() and int(np.argmax(below)) == 0:
                 target = 0.0
             else:
-                k60 = int(np.argmax(np.append(vals[:k15] < max(0.6 * peak, floor), True)))
+                k60 = int(np.argmax(np.append(vals[:k35] < max(0.6 * peak, floor), True)))
                 g = -np.gradient(vals)
-                lo, hi = max(k60 - 1, 0), min(k15 + 1, len(vals) - 1)
+                lo, hi = max(k60 - 1, 0), min(k35 + 1, len(vals) - 1)
                 k = lo + int(np.argmax(g[lo:hi + 1]))
                 a, b, c = g[max(k - 1, 0)], g[k], g[min(k + 1, len(g) - 1)]
                 denom = a - 2 * b + c

@@ -296,13 +296,15 @@ def _bilinear(image, r, c):
 @njit(cache=True, nogil=True)
 def _end_target(evidence, end, t, steps, floor, half_width_px):
     """(found, target): where the end at ``end`` (row, col) should go along the unit tangent ``t``, as an
-    offset [px] along it. The evidence is sampled (:func:`_bilinear`) at ``end + steps t``; the boundary is
-    the first sample inside the image (the ray may enter it late) below 15 % of the peak (the largest of
-    the first 8 samples; the level at least ``floor`` / 2): at the first sample, the end is already
-    outside (target 0); else the steepest fall (central differences) from one step before the first sample
-    below 60 % of the peak (at least ``floor``) to one step past the boundary, refined by a parabola, and
-    the target is half a width inside it. No such sample but the ray leaves the image: the step before the
-    first sample outside it. Neither: not found. Float32 samples compared with float32 levels, as numpy
+    offset [px] along it. The evidence is sampled (:func:`_bilinear`) at ``end + steps t``; the boundary's
+    foot is the first sample inside the image (the ray may enter it late) below 35 % of the peak (the
+    largest of the first 8 samples; the level at least ``floor``): where the first sample is already
+    below 15 % (at least ``floor`` / 2), the end is outside (target 0); else the steepest fall (central
+    differences) from one step before the first sample below 60 % of the peak (at least ``floor``) to
+    one step past the foot, refined by a parabola, and the target is half a width inside it (the search
+    stops at 35 %, not lower: a rod's shadow beyond its end can hold the evidence above 15 % past the
+    ray's reach, and its own edge can be as steep as the rod's). No foot but the ray leaves the image:
+    the step before the first sample outside it. Neither: not found. Float32 samples compared with float32 levels, as numpy
     compares them with Python floats."""
     h, w = evidence.shape
     n = steps.size
@@ -321,24 +323,28 @@ def _end_target(evidence, end, t, steps, floor, half_width_px):
         peak = max(peak, vals[k])
     peak64 = np.float64(peak)
     level15 = np.float32(max(0.15 * peak64, 0.5 * floor))
+    level35 = np.float32(max(0.35 * peak64, floor))
     k15 = -1
+    k35 = -1
     for k in range(n):
+        if k35 < 0 and vals[k] < level35 and inside[k]:
+            k35 = k
         if vals[k] < level15 and inside[k]:
             k15 = k
             break
-    if k15 < 0:
+    if k35 < 0:
         if first_outside < 0:
             return False, 0.0
         return True, steps[first_outside - 1 if first_outside > 0 else n - 1]
     if k15 == 0:
         return True, 0.0
     level60 = np.float32(max(0.6 * peak64, floor))
-    k60 = k15
-    for k in range(k15):
+    k60 = k35
+    for k in range(k35):
         if vals[k] < level60:
             k60 = k
             break
-    lo, hi = max(k60 - 1, 0), min(k15 + 1, n - 1)
+    lo, hi = max(k60 - 1, 0), min(k35 + 1, n - 1)
     k, best = lo, _gradient(vals, lo)
     for j in range(lo + 1, hi + 1):              # steepest fall (first of equals)
         g = _gradient(vals, j)
