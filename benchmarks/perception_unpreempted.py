@@ -4,15 +4,15 @@
                                                 [--data ../shared/data/dlo_images]
 
 On a shared machine most ``perceive`` calls are preempted, so their wall clock measures the load. Each call here
-records its wall clock, its thread CPU time and the thread's involuntary context switches (``getrusage``,
-RUSAGE_THREAD); a call with none ran without being preempted, so its wall clock is what an idle machine would
-give, apart from the cache and memory bandwidth the other CPU's processes share. The pipeline runs on one thread
-(process CPU time = the calling thread's), so nothing else of the call is missed. Reported per image: the number
-of such calls and their median wall clock, for this checkout and (``--other``) another one, in alternating
-processes as ``perception_side_by_side.py``. When no call escapes preemption, a rough estimate instead: the
-intercept of a straight-line fit of each photo's thread CPU time against the number of preemptions per call (the
-CPU time a call would take without them; rough, since longer calls are preempted more often), median over the
-photos. Printed only (no results file).
+records its wall clock, the process's CPU time and involuntary context switches (``getrusage``, RUSAGE_SELF: the
+calling thread and the pipeline's worker thread, which computes the distance maps while the calling thread thins;
+the process runs nothing else meanwhile); a call with none ran without being preempted, so its wall clock is what
+an idle machine would give, apart from the cache and memory bandwidth the other CPU's processes share. Reported
+per image: the number of such calls and their median wall clock, for this checkout and (``--other``) another one,
+in alternating processes as ``perception_side_by_side.py``. When no call escapes preemption, a rough estimate
+instead: the intercept of a straight-line fit of each photo's CPU time against the number of preemptions per call
+(the CPU time a call would take without them; rough, since longer calls are preempted more often), median over
+the photos. Printed only (no results file).
 """
 from __future__ import annotations
 
@@ -42,11 +42,11 @@ def child(src: Path, data: Path, repeats: int):
         perceive(img)
         calls = []
         for _ in range(repeats):
-            r0 = resource.getrusage(resource.RUSAGE_THREAD)
-            t0, c0 = time.perf_counter(), time.thread_time()
+            r0 = resource.getrusage(resource.RUSAGE_SELF)
+            t0, c0 = time.perf_counter(), time.process_time()
             perceive(img)
-            t1, c1 = time.perf_counter(), time.thread_time()
-            r1 = resource.getrusage(resource.RUSAGE_THREAD)
+            t1, c1 = time.perf_counter(), time.process_time()
+            r1 = resource.getrusage(resource.RUSAGE_SELF)
             calls.append(((t1 - t0) * 1e3, (c1 - c0) * 1e3, r1.ru_nivcsw - r0.ru_nivcsw))
         out[Path(f).stem] = calls
     print(json.dumps(out))
@@ -83,7 +83,7 @@ def main():
     print(f'{args.rounds} rounds x {args.repeats} calls per image and checkout; load average at the start '
           f'{", ".join(f"{v:.1f}" for v in load_start)}, at the end {", ".join(f"{v:.1f}" for v in load_end)}')
     header = '| image |' + ''.join(f' {n}: unpreempted calls | {n}: their median wall ms | {n}: all calls median '
-                                   f'wall ms | {n}: median thread CPU ms |' for n in trees)
+                                   f'wall ms | {n}: median process CPU ms |' for n in trees)
     print(header)
     print('|---|' + '---|---|---|---|' * len(trees))
     summary = {n: [] for n in trees}
@@ -104,7 +104,7 @@ def main():
         free = [v for v in summary[n] if np.isfinite(v)]
         print(f'{n}: median over the images of the unpreempted calls\' median wall clock '
               + (f'{np.median(free):.1f} ms ({len(free)} images)' if free else '- (no call escaped preemption)')
-              + f'; thread CPU time extrapolated to no preemption {np.median(intercepts[n]):.1f} ms (median over '
+              + f'; process CPU time extrapolated to no preemption {np.median(intercepts[n]):.1f} ms (median over '
               'the images)')
 
 

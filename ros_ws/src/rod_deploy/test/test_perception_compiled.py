@@ -599,3 +599,32 @@ def test_neighbour_table_is_the_index_image_lookup():
         index[rows + 1, cols + 1] = np.arange(flat.size)
         ref = np.stack([index[rows + 1 + dr, cols + 1 + dc] for dr, dc in _OFFSETS], axis=1)
         assert np.array_equal(_neighbour_table(flat, w, _OFFSETS), ref), trial
+
+
+def test_perceive_from_several_threads_at_once_is_perceive_one_call_at_a_time():
+    """The distance maps run on the pipeline's worker thread; concurrent calls (a multi-threaded ROS executor)
+    share it and must still get their own maps: the same paths, widths and crossing decisions, bit for bit."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from rod_deploy.perception.crossing_scenes import crossing_scene
+    from rod_deploy.perception.pipeline import perceive
+    from rod_deploy.perception.synthetic import draw_strokes, example_curves
+    images = [crossing_scene(kind, 1001).image for kind in ('cross_twice', 'random')]
+    images.append(draw_strokes((400, 400), [example_curves(400)['circle'], example_curves(400)['sine']], [5.0, 4.0],
+                               [(30, 30, 30), (40, 40, 160)]))
+
+    def summary(image):
+        res = perceive(image)
+        return ([(o.points, o.width_px, o.closed) for o in res.objects],
+                [(d.position, d.objects, d.over, d.confidence, d.cue) for d in res.crossings])
+
+    one_by_one = [summary(im) for im in images]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        at_once = list(pool.map(summary, images * 4))
+    for k, got in enumerate(at_once):
+        want = one_by_one[k % len(images)]
+        assert len(got[0]) == len(want[0]) and len(got[1]) == len(want[1])
+        for (p, w, c), (q, v, d) in zip(got[0], want[0]):
+            assert np.array_equal(p, q) and w == v and c == d
+        for a, b in zip(got[1], want[1]):
+            assert np.array_equal(a[0], b[0]) and a[1:] == b[1:]

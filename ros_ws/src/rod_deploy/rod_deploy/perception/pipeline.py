@@ -43,6 +43,7 @@ mapped back to full-resolution pixels. Units: pixels, points (row, col), integer
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -59,6 +60,10 @@ from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve
                                                   prune_spurs, remove_small_parts, skeleton_of)
 from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
                                              split_at_colour_changes, trace_objects, unpaired_branch_ends)
+
+
+# one worker thread for the distance maps, which overlap the thinning and graph work of the calling thread
+_SECOND_CORE = ThreadPoolExecutor(max_workers=1, thread_name_prefix='perception')
 
 
 class PerceptionError(ValueError):
@@ -150,8 +155,11 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     timings['segmentation'] = (t1 - t0) * 1e3
 
     mask, f = skeleton_mask(seg, config)
+    # the distance maps (OpenCV, which lets go of the GIL) on a second core while this thread thins the mask
+    skel_dist_job = _SECOND_CORE.submit(distance_map, mask)
+    dist_job = skel_dist_job if f == 1 else _SECOND_CORE.submit(distance_map, seg.mask)
     graph = build_skeleton_graph(skeleton_of(mask))
-    skel_dist = distance_map(mask)
+    skel_dist = skel_dist_job.result()
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
     ws = w / f
     t2 = time.perf_counter()
@@ -198,12 +206,9 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     if not traced:
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
-    dist = [skel_dist if f == 1 else None]
 
-    def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1), lazily
-        if dist[0] is None:
-            dist[0] = distance_map(seg.mask)
-        return cl.lookup(dist[0], p)
+    def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1)
+        return cl.lookup(dist_job.result(), p)
 
     if len(traced) > 1:
         traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
@@ -228,8 +233,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
                                                   config.min_colour_separation)
             if not obj.closed:
-                half_width_at(obj.points[:1])                  # the full-resolution distance map, once
-                refined.points = trace_filled_loop(refined.points, dist[0],
+                refined.points = trace_filled_loop(refined.points, dist_job.result(),
                                                    [o.points for o in traced if o is not obj],
                                                    [obj.points[i0:i1 + 1] for _, i0, i1 in obj.passes])
         else:
