@@ -628,3 +628,22 @@ def test_perceive_from_several_threads_at_once_is_perceive_one_call_at_a_time():
             assert np.array_equal(p, q) and w == v and c == d
         for a, b in zip(got[1], want[1]):
             assert np.array_equal(a[0], b[0]) and a[1:] == b[1:]
+
+
+def _perceive_summary(image):
+    from rod_deploy.perception.pipeline import perceive
+    res = perceive(image)
+    return [o.points for o in res.objects]
+
+
+def test_perceive_in_a_forked_child_after_the_parent_used_it():
+    """The worker thread does not survive a fork: a child process (multiprocessing's 'fork') starts its own
+    instead of waiting forever on its parent's, and gets the parent's numbers."""
+    import multiprocessing
+
+    from rod_deploy.perception.crossing_scenes import crossing_scene
+    image = crossing_scene('random', 1002).image
+    here = _perceive_summary(image)
+    with multiprocessing.get_context('fork').Pool(1) as pool:
+        there = pool.apply_async(_perceive_summary, (image,)).get(timeout=120)
+    assert len(there) == len(here) and all(np.array_equal(p, q) for p, q in zip(there, here))

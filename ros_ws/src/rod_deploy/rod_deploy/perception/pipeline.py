@@ -42,6 +42,8 @@ mapped back to full-resolution pixels. Units: pixels, points (row, col), integer
 """
 from __future__ import annotations
 
+import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -62,8 +64,27 @@ from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, pla
                                              split_at_colour_changes, trace_objects, unpaired_branch_ends)
 
 
-# one worker thread for the distance maps, which overlap the thinning and graph work of the calling thread
-_SECOND_CORE = ThreadPoolExecutor(max_workers=1, thread_name_prefix='perception')
+_worker = None                 # the executor of _second_core(), created at first use
+_worker_lock = threading.Lock()
+
+
+def _second_core() -> ThreadPoolExecutor:
+    """One worker thread for the distance maps, which overlap the thinning and graph work of the calling thread
+    (on a second core; concurrent calls queue their jobs on it)."""
+    global _worker
+    with _worker_lock:
+        if _worker is None:
+            _worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='perception')
+        return _worker
+
+
+def _forget_worker():
+    """In a forked child: its parent's worker thread does not exist there; the next call starts its own."""
+    global _worker, _worker_lock
+    _worker, _worker_lock = None, threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_worker)
 
 
 class PerceptionError(ValueError):
@@ -156,8 +177,9 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     mask, f = skeleton_mask(seg, config)
     # the distance maps (OpenCV, which lets go of the GIL) on a second core while this thread thins the mask
-    skel_dist_job = _SECOND_CORE.submit(distance_map, mask)
-    dist_job = skel_dist_job if f == 1 else _SECOND_CORE.submit(distance_map, seg.mask)
+    worker = _second_core()
+    skel_dist_job = worker.submit(distance_map, mask)
+    dist_job = skel_dist_job if f == 1 else worker.submit(distance_map, seg.mask)
     graph = build_skeleton_graph(skeleton_of(mask))
     skel_dist = skel_dist_job.result()
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
