@@ -4,7 +4,8 @@
                                                 [--data ../shared/data/dlo_images]
 
 On a shared machine most ``perceive`` calls are preempted, so their wall clock measures the load. Each call here
-records its wall clock, the process's CPU time, its involuntary context switches (``getrusage``, RUSAGE_SELF) and
+records its wall clock, the process's and the calling thread's CPU time (the latter is about the wall clock when the
+worker has a core of its own), its involuntary context switches (``getrusage``, RUSAGE_SELF) and
 the time its threads spent runnable but waiting for a CPU (the run-queue delay of ``/proc/self/task/*/schedstat``,
 summed over the calling thread and the pipeline's worker thread, which computes the distance maps while the
 calling thread thins; a thread woken up, e.g. the worker given a job, can wait for a CPU without being preempted,
@@ -59,11 +60,12 @@ def child(src: Path, data: Path, repeats: int):
         calls = []
         for _ in range(repeats):
             q0, r0 = run_queue_delay_ns(), resource.getrusage(resource.RUSAGE_SELF)
-            t0, c0 = time.perf_counter(), time.process_time()
+            t0, c0, m0 = time.perf_counter(), time.process_time(), time.thread_time()
             perceive(img)
-            t1, c1 = time.perf_counter(), time.process_time()
+            t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
             r1, q1 = resource.getrusage(resource.RUSAGE_SELF), run_queue_delay_ns()
-            calls.append(((t1 - t0) * 1e3, (c1 - c0) * 1e3, r1.ru_nivcsw - r0.ru_nivcsw, (q1 - q0) * 1e-6))
+            calls.append(((t1 - t0) * 1e3, (c1 - c0) * 1e3, r1.ru_nivcsw - r0.ru_nivcsw, (q1 - q0) * 1e-6,
+                          (m1 - m0) * 1e3))
         out[Path(f).stem] = calls
     print(json.dumps(out))
 
@@ -100,11 +102,13 @@ def main():
     print(f'{args.rounds} rounds x {args.repeats} calls per image and checkout; load average at the start '
           f'{", ".join(f"{v:.1f}" for v in load_start)}, at the end {", ".join(f"{v:.1f}" for v in load_end)}')
     header = '| image |' + ''.join(f' {n}: unpreempted calls | {n}: their median wall ms | {n}: all calls median '
-                                   f'wall ms | {n}: median process CPU ms | {n}: median run-queue delay ms |'
+                                   f'wall ms | {n}: median process CPU ms | {n}: median calling-thread CPU ms | '
+                                   f'{n}: median run-queue delay ms |'
                                    for n in trees)
     print(header)
-    print('|---|' + '---|---|---|---|---|' * len(trees))
+    print('|---|' + '---|---|---|---|---|---|' * len(trees))
     summary = {n: [] for n in trees}
+    cpu = {n: [] for n in trees}
     intercepts = {n: [] for n in trees}
     for im in images:
         row = f'| {im} |'
@@ -113,11 +117,15 @@ def main():
             free = calls[(calls[:, 2] == 0) & (calls[:, 3] <= args.max_delay_ms)]
             med = float(np.median(free[:, 0])) if len(free) else float('nan')
             summary[n].append(med)
+            cpu[n].append((float(np.median(calls[:, 1])), float(np.median(calls[:, 4]))))
             fit = np.linalg.lstsq(np.stack([np.ones(len(calls)), calls[:, 2]], axis=1), calls[:, 1], rcond=None)[0]
             intercepts[n].append(float(fit[0]))
             row += (f' {len(free)}/{len(calls)} | {med:.1f} | {np.median(calls[:, 0]):.1f} | '
-                    f'{np.median(calls[:, 1]):.1f} | {np.median(calls[:, 3]):.2f} |')
+                    f'{np.median(calls[:, 1]):.1f} | {np.median(calls[:, 4]):.1f} | {np.median(calls[:, 3]):.2f} |')
         print(row)
+    for n in trees:
+        print(f'{n}: median over the images of the median process CPU time {np.median([c[0] for c in cpu[n]]):.1f} ms, '
+              f'of the calling thread\'s {np.median([c[1] for c in cpu[n]]):.1f} ms')
     for n in trees:
         free = [v for v in summary[n] if np.isfinite(v)]
         print(f'{n}: median over the images of the unpreempted calls\' median wall clock '
