@@ -647,3 +647,18 @@ def test_perceive_in_a_forked_child_after_the_parent_used_it():
     with multiprocessing.get_context('fork').Pool(1) as pool:
         there = pool.apply_async(_perceive_summary, (image,)).get(timeout=120)
     assert len(there) == len(here) and all(np.array_equal(p, q) for p, q in zip(there, here))
+
+
+def test_a_job_the_worker_has_not_started_is_computed_by_the_caller():
+    import threading
+
+    from rod_deploy.perception.pipeline import _result, _second_core
+    release = threading.Event()
+    busy = _second_core().submit(release.wait, 30)             # the worker is busy (no core free for it)
+    queued = _second_core().submit(pow, 2, 10)
+    assert _result(queued, pow, 2, 10) == 1024 and queued.cancelled()
+    release.set()
+    assert busy.result(timeout=30)
+    started = _second_core().submit(pow, 3, 4)
+    started.result(timeout=30)
+    assert _result(started, pow, 3, 4) == 81 and not started.cancelled()

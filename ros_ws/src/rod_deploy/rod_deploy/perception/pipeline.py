@@ -78,6 +78,12 @@ def _second_core() -> ThreadPoolExecutor:
         return _worker
 
 
+def _result(job, fn, *args):
+    """The result of the worker's ``job`` = ``fn(*args)``; computed in this thread instead if the worker has not
+    started it yet (no core free for it: on a loaded machine waiting would only add its delay)."""
+    return fn(*args) if job.cancel() else job.result()
+
+
 def _forget_worker():
     """In a forked child: its parent's worker thread does not exist there; the next call starts its own."""
     global _worker, _worker_lock
@@ -181,7 +187,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     skel_dist_job = worker.submit(distance_map, mask)
     dist_job = skel_dist_job if f == 1 else worker.submit(distance_map, seg.mask)
     graph = build_skeleton_graph(skeleton_of(mask))
-    skel_dist = skel_dist_job.result()
+    skel_dist = _result(skel_dist_job, distance_map, mask)
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
     ws = w / f
     t2 = time.perf_counter()
@@ -229,8 +235,15 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
 
-    def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1)
-        return cl.lookup(dist_job.result(), p)
+    full_dist = [skel_dist] if f == 1 else []
+
+    def full_distance_map():   # the mask's distance map at full resolution (the skeleton's when f == 1)
+        if not full_dist:
+            full_dist.append(_result(dist_job, distance_map, seg.mask))
+        return full_dist[0]
+
+    def half_width_at(p):
+        return cl.lookup(full_distance_map(), p)
 
     if len(traced) > 1:
         traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
@@ -255,7 +268,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
                                                   config.min_colour_separation)
             if not obj.closed:
-                refined.points = trace_filled_loop(refined.points, dist_job.result(),
+                refined.points = trace_filled_loop(refined.points, full_distance_map(),
                                                    [o.points for o in traced if o is not obj],
                                                    [obj.points[i0:i1 + 1] for _, i0, i1 in obj.passes])
         else:
