@@ -8,11 +8,10 @@ the published mBEST photos, in alternating processes so that the load of a share
 Each round runs one process per checkout (the order alternates from round to round); a process loads the
 images, calls ``perceive`` once per image (compilation, caches), then times ``--repeats`` calls per image
 (wall clock and process CPU time, image in memory, segmentation to ordered paths, as
-``perception_mbest.py``; the pipeline's per-stage timer is made to read CPU time; process CPU time includes the
-pipeline's worker thread, whose distance maps then count in the stage during which it computes them, mostly
-"skeleton"). Reported per image: the median over all rounds of each checkout, and the per-stage CPU medians; and
-how far the two checkouts' paths lie apart (largest distance from a point of one to the other's nearest path point,
-over the objects matched by order). Accuracy against the ground truth is ``perception_mbest.py``'s job.
+``perception_mbest.py``; the pipeline's per-stage timer is made to read CPU time). Reported per image: the
+median over all rounds of each checkout, and the per-stage CPU medians; and how far the two checkouts' paths lie apart (largest distance from a point of one
+to the other's nearest path point, over the objects matched by order). Accuracy against the ground truth
+is ``perception_mbest.py``'s job.
 """
 from __future__ import annotations
 

@@ -4,18 +4,14 @@
                                                 [--data ../shared/data/dlo_images]
 
 On a shared machine most ``perceive`` calls are preempted, so their wall clock measures the load. Each call here
-records its wall clock, the process's and the calling thread's CPU time (the latter is about the wall clock when the
-worker has a core of its own), its involuntary context switches (``getrusage``, RUSAGE_SELF) and
-the time its threads spent runnable but waiting for a CPU (the run-queue delay of ``/proc/self/task/*/schedstat``,
-summed over the calling thread and the pipeline's worker thread, which computes the distance maps while the
-calling thread thins; a thread woken up, e.g. the worker given a job, can wait for a CPU without being preempted,
-so switches alone do not show it; OpenCV's idle pool threads, which accrue such delay without working for the
-call, are left out). A call with no involuntary switch and at most ``--max-delay-ms`` (0.1 ms) of run-queue delay
-ran as on an idle machine, apart from the cache and memory bandwidth the other CPU's processes share. Reported per
-image: the number of such calls and their median wall clock, for this checkout and (``--other``) another one, in
-alternating processes as ``perception_side_by_side.py``. When no call escapes, a rough estimate instead: the
-intercept of a straight-line fit of each photo's CPU time against the number of preemptions per call (the CPU
-time a call would take without them; rough, since longer calls are preempted more often), median over the
+records its wall clock, its thread CPU time and the thread's involuntary context switches (``getrusage``,
+RUSAGE_THREAD); a call with none ran without being preempted, so its wall clock is what an idle machine would
+give, apart from the cache and memory bandwidth the other CPU's processes share. The pipeline runs on one thread
+(process CPU time = the calling thread's), so nothing else of the call is missed. Reported per image: the number
+of such calls and their median wall clock, for this checkout and (``--other``) another one, in alternating
+processes as ``perception_side_by_side.py``. When no call escapes preemption, a rough estimate instead: the
+intercept of a straight-line fit of each photo's thread CPU time against the number of preemptions per call (the
+CPU time a call would take without them; rough, since longer calls are preempted more often), median over the
 photos. Printed only (no results file).
 """
 from __future__ import annotations
@@ -35,19 +31,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def run_queue_delay_ns() -> int:
-    """Time the calling thread and the pipeline's worker thread ('perception...') have spent runnable, waiting
-    for a CPU, so far [ns] (field 2 of their schedstat)."""
-    import threading
-    tids = {threading.get_native_id()}
-    tids |= {t.native_id for t in threading.enumerate() if t.name.startswith('perception')}
-    total = 0
-    for tid in tids:
-        with open(f'/proc/self/task/{tid}/schedstat') as fh:
-            total += int(fh.read().split()[1])
-    return total
-
-
 def child(src: Path, data: Path, repeats: int):
     for package in ('robot_bridge', 'flex_ident', 'rod_deploy'):
         sys.path.insert(0, str(src / 'ros_ws' / 'src' / package))
@@ -59,13 +42,12 @@ def child(src: Path, data: Path, repeats: int):
         perceive(img)
         calls = []
         for _ in range(repeats):
-            q0, r0 = run_queue_delay_ns(), resource.getrusage(resource.RUSAGE_SELF)
-            t0, c0, m0 = time.perf_counter(), time.process_time(), time.thread_time()
+            r0 = resource.getrusage(resource.RUSAGE_THREAD)
+            t0, c0 = time.perf_counter(), time.thread_time()
             perceive(img)
-            t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
-            r1, q1 = resource.getrusage(resource.RUSAGE_SELF), run_queue_delay_ns()
-            calls.append(((t1 - t0) * 1e3, (c1 - c0) * 1e3, r1.ru_nivcsw - r0.ru_nivcsw, (q1 - q0) * 1e-6,
-                          (m1 - m0) * 1e3))
+            t1, c1 = time.perf_counter(), time.thread_time()
+            r1 = resource.getrusage(resource.RUSAGE_THREAD)
+            calls.append(((t1 - t0) * 1e3, (c1 - c0) * 1e3, r1.ru_nivcsw - r0.ru_nivcsw))
         out[Path(f).stem] = calls
     print(json.dumps(out))
 
@@ -75,7 +57,6 @@ def main():
     p.add_argument('--other', help='root of another checkout (e.g. main exported with git archive)')
     p.add_argument('--rounds', type=int, default=4)
     p.add_argument('--repeats', type=int, default=25)
-    p.add_argument('--max-delay-ms', type=float, default=0.1, help='run-queue delay a call may have [ms]')
     p.add_argument('--data', default=str(ROOT.parent / 'shared' / 'data' / 'dlo_images'))
     p.add_argument('--child', help=argparse.SUPPRESS)
     args = p.parse_args()
@@ -102,35 +83,28 @@ def main():
     print(f'{args.rounds} rounds x {args.repeats} calls per image and checkout; load average at the start '
           f'{", ".join(f"{v:.1f}" for v in load_start)}, at the end {", ".join(f"{v:.1f}" for v in load_end)}')
     header = '| image |' + ''.join(f' {n}: unpreempted calls | {n}: their median wall ms | {n}: all calls median '
-                                   f'wall ms | {n}: median process CPU ms | {n}: median calling-thread CPU ms | '
-                                   f'{n}: median run-queue delay ms |'
-                                   for n in trees)
+                                   f'wall ms | {n}: median thread CPU ms |' for n in trees)
     print(header)
-    print('|---|' + '---|---|---|---|---|---|' * len(trees))
+    print('|---|' + '---|---|---|---|' * len(trees))
     summary = {n: [] for n in trees}
-    cpu = {n: [] for n in trees}
     intercepts = {n: [] for n in trees}
     for im in images:
         row = f'| {im} |'
         for n in trees:
             calls = np.array([c for run in runs[n] for c in run[im]])
-            free = calls[(calls[:, 2] == 0) & (calls[:, 3] <= args.max_delay_ms)]
+            free = calls[calls[:, 2] == 0]
             med = float(np.median(free[:, 0])) if len(free) else float('nan')
             summary[n].append(med)
-            cpu[n].append((float(np.median(calls[:, 1])), float(np.median(calls[:, 4]))))
             fit = np.linalg.lstsq(np.stack([np.ones(len(calls)), calls[:, 2]], axis=1), calls[:, 1], rcond=None)[0]
             intercepts[n].append(float(fit[0]))
             row += (f' {len(free)}/{len(calls)} | {med:.1f} | {np.median(calls[:, 0]):.1f} | '
-                    f'{np.median(calls[:, 1]):.1f} | {np.median(calls[:, 4]):.1f} | {np.median(calls[:, 3]):.2f} |')
+                    f'{np.median(calls[:, 1]):.1f} |')
         print(row)
-    for n in trees:
-        print(f'{n}: median over the images of the median process CPU time {np.median([c[0] for c in cpu[n]]):.1f} ms, '
-              f'of the calling thread\'s {np.median([c[1] for c in cpu[n]]):.1f} ms')
     for n in trees:
         free = [v for v in summary[n] if np.isfinite(v)]
         print(f'{n}: median over the images of the unpreempted calls\' median wall clock '
               + (f'{np.median(free):.1f} ms ({len(free)} images)' if free else '- (no call escaped preemption)')
-              + f'; process CPU time extrapolated to no preemption {np.median(intercepts[n]):.1f} ms (median over '
+              + f'; thread CPU time extrapolated to no preemption {np.median(intercepts[n]):.1f} ms (median over '
               'the images)')
 
 

@@ -42,10 +42,7 @@ mapped back to full-resolution pixels. Units: pixels, points (row, col), integer
 """
 from __future__ import annotations
 
-import os
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -62,35 +59,6 @@ from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve
                                                   prune_spurs, remove_small_parts, skeleton_of)
 from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
                                              split_at_colour_changes, trace_objects, unpaired_branch_ends)
-
-
-_worker = None                 # the executor of _second_core(), created at first use
-_worker_lock = threading.Lock()
-
-
-def _second_core() -> ThreadPoolExecutor:
-    """One worker thread for the distance maps, which overlap the thinning and graph work of the calling thread
-    (on a second core; concurrent calls queue their jobs on it)."""
-    global _worker
-    with _worker_lock:
-        if _worker is None:
-            _worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='perception')
-        return _worker
-
-
-def _result(job, fn, *args):
-    """The result of the worker's ``job`` = ``fn(*args)``; computed in this thread instead if the worker has not
-    started it yet (no core free for it: on a loaded machine waiting would only add its delay)."""
-    return fn(*args) if job.cancel() else job.result()
-
-
-def _forget_worker():
-    """In a forked child: its parent's worker thread does not exist there; the next call starts its own."""
-    global _worker, _worker_lock
-    _worker, _worker_lock = None, threading.Lock()
-
-
-os.register_at_fork(after_in_child=_forget_worker)
 
 
 class PerceptionError(ValueError):
@@ -182,12 +150,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     timings['segmentation'] = (t1 - t0) * 1e3
 
     mask, f = skeleton_mask(seg, config)
-    # the distance maps (OpenCV, which lets go of the GIL) on a second core while this thread thins the mask
-    worker = _second_core()
-    skel_dist_job = worker.submit(distance_map, mask)
-    dist_job = skel_dist_job if f == 1 else worker.submit(distance_map, seg.mask)
     graph = build_skeleton_graph(skeleton_of(mask))
-    skel_dist = _result(skel_dist_job, distance_map, mask)
+    skel_dist = distance_map(mask)
     w = _centreline_width(graph, skel_dist, f, w, config.width_mismatch)
     ws = w / f
     t2 = time.perf_counter()
@@ -234,16 +198,12 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     if not traced:
         raise PerceptionError('no stroke or rod found: no candidate is clearly brighter or darker than the '
                               'background along its length (texture?)')
+    dist = [skel_dist if f == 1 else None]
 
-    full_dist = [skel_dist] if f == 1 else []
-
-    def full_distance_map():   # the mask's distance map at full resolution (the skeleton's when f == 1)
-        if not full_dist:
-            full_dist.append(_result(dist_job, distance_map, seg.mask))
-        return full_dist[0]
-
-    def half_width_at(p):
-        return cl.lookup(full_distance_map(), p)
+    def half_width_at(p):      # the mask's distance map at full resolution (the skeleton's when f == 1), lazily
+        if dist[0] is None:
+            dist[0] = distance_map(seg.mask)
+        return cl.lookup(dist[0], p)
 
     if len(traced) > 1:
         traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
@@ -268,7 +228,8 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,
                                                   config.min_colour_separation)
             if not obj.closed:
-                refined.points = trace_filled_loop(refined.points, full_distance_map(),
+                half_width_at(obj.points[:1])                  # the full-resolution distance map, once
+                refined.points = trace_filled_loop(refined.points, dist[0],
                                                    [o.points for o in traced if o is not obj],
                                                    [obj.points[i0:i1 + 1] for _, i0, i1 in obj.passes])
         else:
