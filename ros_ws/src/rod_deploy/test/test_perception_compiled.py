@@ -189,6 +189,9 @@ def test_edge_profiles_are_the_remap_of_the_numpy_maps():
         cols = (pts[:, 1:2] + offsets[None, :] * normals[:, 1:2]).astype(np.float32)
         ref = cv2.remap(image.astype(np.float32), cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         assert prof.dtype == np.float32 and np.array_equal(prof, ref)
+        # the uint8 image itself (the pipeline's evidence, no float copy) gives the same profiles
+        prof_u8, offsets_u8 = edge_profiles(image, pts, normals, half)
+        assert np.array_equal(offsets_u8, offsets) and prof_u8.dtype == np.float32 and np.array_equal(prof_u8, ref)
         # the compiled bilinear sample (end placement) is remap's, on uint8 and float32 images
         for i, j in zip(rng.integers(0, n, 20), rng.integers(0, len(offsets), 20)):
             for img in (image, image.astype(np.float32)):
@@ -557,3 +560,43 @@ def test_foreign_end_trimming_is_the_numpy_formula():
         assert np.array_equal(out.points, pts[lo:hi + 1])
         trimmed += (lo, hi) != (0, n - 1)
     assert trimmed > 100
+
+
+def test_nearest_distances_are_the_kd_trees():
+    from scipy.spatial import cKDTree
+
+    from rod_deploy.perception.nearest import nearest_distances
+    rng = np.random.default_rng(12)
+    for trial in range(600):
+        n, m = rng.integers(1, 300, 2)
+        kind = trial % 4
+        if kind == 0:        # integer pixels: many exact ties and distances equal to the bound
+            data, queries = rng.integers(0, 40, (n, 2)).astype(float), rng.integers(-5, 45, (m, 2)).astype(float)
+        elif kind == 1:      # the pipeline's full-resolution points of a half-resolution skeleton
+            data, queries = rng.integers(0, 80, (n, 2)) + 0.5, rng.integers(-5, 85, (m, 2)) / 2.0
+        elif kind == 2:
+            data, queries = rng.uniform(0, 200, (n, 2)), rng.uniform(-20, 220, (m, 2))
+        else:                # a path and points beside it
+            s = np.cumsum(rng.uniform(0.2, 1.5, n))
+            data = np.stack([60 + 30 * np.sin(s / 15), s], axis=1)
+            queries = data[rng.integers(0, n, m)] + rng.normal(0, 5, (m, 2))
+        bound = (rng.uniform(0.5, 30), float(rng.integers(1, 12)), float(np.sqrt(rng.integers(1, 100))), np.inf,
+                 1e-3)[trial % 5]
+        ref = cKDTree(data).query(queries, distance_upper_bound=bound)[0]
+        assert np.array_equal(nearest_distances(data, queries, bound), ref), trial
+
+
+def test_neighbour_table_is_the_index_image_lookup():
+    from rod_deploy.perception.skeleton_graph import _OFFSETS, _neighbour_table
+    rng = np.random.default_rng(13)
+    for trial in range(400):
+        h, w = rng.integers(1, 60, 2)
+        skeleton = rng.random((h, w)) < rng.uniform(0.02, 0.9)
+        flat = np.flatnonzero(skeleton)
+        if not flat.size:
+            continue
+        rows, cols = np.divmod(flat, w)
+        index = np.full((h + 2, w + 2), -1)                   # pixel numbers in a padded image
+        index[rows + 1, cols + 1] = np.arange(flat.size)
+        ref = np.stack([index[rows + 1 + dr, cols + 1 + dc] for dr, dc in _OFFSETS], axis=1)
+        assert np.array_equal(_neighbour_table(flat, w, _OFFSETS), ref), trial

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
-import cv2
 import numpy as np
 from numba import njit
 from scipy.ndimage import gaussian_filter1d
@@ -251,26 +250,26 @@ def _unit_tangents(points, closed):
 
 def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray, half_span_px: float,
                   step_px: float = 0.5):
-    """Evidence (float32 image) sampled across the path: (n, k) profiles at offsets (k,) [px] along the normals
-    (cv2.remap, bilinear, border replicated: its vectorised kernel is faster than :func:`_bilinear` here)."""
+    """Evidence (a one-channel uint8 or float32 image) sampled across the path: float32 (n, k) profiles at
+    offsets (k,) [px] along the normals; bilinear, border replicated, the numbers of ``cv2.remap`` of the image
+    as float32 (:func:`_bilinear`; compiled, so neither a float32 copy of the image nor sample maps are made)."""
     offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
-    cols, rows = _profile_maps(np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64), offsets)
-    prof = cv2.remap(evidence, cols, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    prof = _profiles(evidence, np.ascontiguousarray(points, dtype=np.float64),
+                     np.ascontiguousarray(normals, dtype=np.float64), offsets)
     return prof, offsets
 
 
 @njit(cache=True, nogil=True)
-def _profile_maps(points, normals, offsets):
-    """float32 (col, row) maps of the samples p + o n (computed in float64, then rounded to float32, as numpy
-    does with points[:, k:k+1] + offsets[None, :] * normals[:, k:k+1])."""
+def _profiles(evidence, points, normals, offsets):
+    """out[i, j] = :func:`_bilinear` of ``evidence`` at p_i + o_j n_i (computed in float64, then rounded to
+    float32, as numpy does with points[:, k:k+1] + offsets[None, :] * normals[:, k:k+1] and remap reads it)."""
     n, k = points.shape[0], offsets.size
-    cols = np.empty((n, k), np.float32)
-    rows = np.empty((n, k), np.float32)
+    out = np.empty((n, k), np.float32)
     for i in range(n):
         for j in range(k):
-            rows[i, j] = np.float32(points[i, 0] + offsets[j] * normals[i, 0])
-            cols[i, j] = np.float32(points[i, 1] + offsets[j] * normals[i, 1])
-    return cols, rows
+            out[i, j] = _bilinear(evidence, np.float32(points[i, 0] + offsets[j] * normals[i, 0]),
+                                  np.float32(points[i, 1] + offsets[j] * normals[i, 1]))
+    return out
 
 
 @njit(cache=True, nogil=True)

@@ -215,7 +215,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     t4 = time.perf_counter()
     timings['crossing_order'] = (t4 - t3) * 1e3
 
-    evidence = seg.evidence.astype(np.float32)
+    evidence = seg.evidence                # uint8: sampled bilinearly as float32 (no float copy)
     floor = 0.25 * seg.threshold
     objects = []
     for obj in traced:
@@ -294,13 +294,17 @@ def distance_map(mask: np.ndarray) -> np.ndarray:
     """``cv2.distanceTransform(mask, DIST_L2, 3)`` of a bool mask, computed on the rows of its bounding box
     and one background row either side (or the image border): every chamfer path from inside to the
     background outside crosses such a row, so the values are the same, bit for bit (checked on random masks
-    in the tests; a crop of the columns is not: OpenCV's vectorised passes round differently there)."""
-    out = np.zeros(mask.shape, np.float32)
+    in the tests; a crop of the columns is not: OpenCV's vectorised passes round differently there). OpenCV
+    writes straight into those rows of the output, and only the rows outside them are zeroed (no full-size
+    temporary, copy or zero fill)."""
     _, r, w, h = cv2.boundingRect(mask.view(np.uint8))
     if w == 0 or h == 0:
-        return out
+        return np.zeros(mask.shape, np.float32)
     r0, r1 = max(r - 1, 0), min(r + h + 1, mask.shape[0])
-    out[r0:r1] = cv2.distanceTransform(mask[r0:r1].view(np.uint8), cv2.DIST_L2, 3)
+    out = np.empty(mask.shape, np.float32)
+    out[:r0] = 0.0
+    out[r1:] = 0.0
+    cv2.distanceTransform(mask[r0:r1].view(np.uint8), cv2.DIST_L2, 3, dst=out[r0:r1])
     return out
 
 

@@ -127,8 +127,8 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
     n = rows.size
     if n == 0:
         return graph
-    # neighbours (pixel numbers, -1: none), compiled: a padded index image of the skeleton's bounding box
-    nb = _neighbour_table(rows, cols, _OFFSETS)
+    # neighbours (pixel numbers, -1: none), compiled
+    nb = _neighbour_table(flat, shape[1], _OFFSETS)
     valid = nb >= 0
     junction = valid.sum(axis=1) >= 3
 
@@ -168,19 +168,27 @@ def build_skeleton_graph(skeleton: np.ndarray) -> SkeletonGraph:
 
 
 @njit(cache=True, nogil=True)
-def _neighbour_table(rows, cols, offsets):
-    """(n, 8) pixel numbers of the 8-neighbours (``offsets`` order) of the skeleton pixels (``rows``, ``cols``
-    in row-major order), -1 where there is none."""
-    n = rows.size
-    r0, c0 = rows[0] - 1, cols.min() - 1
-    index = np.full((rows[n - 1] - r0 + 2, cols.max() - c0 + 2), -1, dtype=np.int64)
-    for i in range(n):
-        index[rows[i] - r0, cols[i] - c0] = i
+def _neighbour_table(flat, width, offsets):
+    """(n, 8) pixel numbers of the 8-neighbours (``offsets`` order) of the skeleton pixels (``flat``: their
+    ascending flat indices in an image ``width`` pixels wide), -1 where there is none. The flat index of
+    each neighbour direction grows with the pixel number, so one pointer per direction walks ``flat`` once
+    (no index image of the skeleton's bounding box)."""
+    n = flat.size
     nb = np.empty((n, 8), dtype=np.int64)
+    pointer = np.zeros(8, dtype=np.int64)
     for i in range(n):
-        r, c = rows[i] - r0, cols[i] - c0
+        c = flat[i] % width
         for k in range(8):
-            nb[i, k] = index[r + offsets[k, 0], c + offsets[k, 1]]
+            nb[i, k] = -1
+            if c + offsets[k, 1] < 0 or c + offsets[k, 1] >= width:
+                continue
+            target = flat[i] + offsets[k, 0] * width + offsets[k, 1]
+            j = pointer[k]
+            while j < n and flat[j] < target:
+                j += 1
+            pointer[k] = j
+            if j < n and flat[j] == target:
+                nb[i, k] = j
     return nb
 
 

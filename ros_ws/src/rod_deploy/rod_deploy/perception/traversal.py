@@ -19,6 +19,7 @@ from numba import njit
 from rod_deploy.perception.bending_energy_pairing import Crossing, branch_geometry, colours_differ
 from rod_deploy.perception.centreline import arc_length, path_length
 from rod_deploy.perception.crossing_order import _column_medians, median0
+from rod_deploy.perception.nearest import nearest_distances
 from rod_deploy.perception.skeleton_graph import END, SkeletonGraph
 
 
@@ -491,22 +492,20 @@ def drop_shadow_strands(objects: list, lab_at, half_width_at, min_colour_separat
     where it is wide enough, leaves its own skeleton beside the rod. ``lab_at(points)`` -> (n, 3) CIELAB."""
     if len(objects) < 2:
         return objects
-    from scipy.spatial import cKDTree
     order = sorted(range(len(objects)), key=lambda i: -objects[i].length_px())
     sub = {i: objects[i].points[::max(1, len(objects[i].points) // 60)] for i in order}
     colours = {i: median0(lab_at(sub[i])) for i in order}
-    trees, half_widths = {}, {}                  # per object, built when first needed
+    half_widths = {}                             # per object, when first needed
     drop = set()
     for rank, i in enumerate(order):
         pts = objects[i].points
         for j in order[:rank]:
             if j in drop:
                 continue
-            if j not in trees:
-                trees[j] = cKDTree(objects[j].points)
+            if j not in half_widths:
                 half_widths[j] = float(median0(half_width_at(sub[j])))
             h = half_widths[j]
-            d, _ = trees[j].query(pts, distance_upper_bound=beside_factor * h + 1.0)
+            d = nearest_distances(objects[j].points, pts, beside_factor * h + 1.0)     # inf beyond the bound
             if np.mean(d <= h + 1.0) >= min_inside_fraction:
                 drop.add(i)
                 break
