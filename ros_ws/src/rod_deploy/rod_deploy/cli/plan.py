@@ -144,8 +144,9 @@ def run(args) -> int:
         print(f'rod-deploy plan: note: the planned curve (the friction-limited start, bends widened by the curvature '
               f'rate limit) strays up to {100 * summary["planned_curve_max_deviation_m"]:.1f} cm from the pattern, at '
               f'({x:.4f}, {y:.4f}) m (|kappa_bar| up to {summary["pattern_max_abs_kappa_bar"]:.2g} on the pattern, '
-              f'{summary["max_abs_kappa_bar"]:.2g} on the planned curve): expect the deployment about as far off; '
-              f'a wider drawing or more table friction lets the rod follow it', file=sys.stderr)
+              f'{summary["max_abs_kappa_bar"]:.2g} on the planned curve): the rod is laid along the planned curve, '
+              f'not the pattern, there; a wider drawing or more table friction lets it follow the pattern',
+              file=sys.stderr)
     kappa_bar_given = summary.get('pattern_max_abs_kappa_bar', summary['max_abs_kappa_bar'])
     if summary['max_abs_kappa_bar'] > 1.0:
         # the planned curve's largest bend: the replaced (friction-limited) start may bend more than the pattern
