@@ -121,7 +121,8 @@ def write_table(out, rows, t_all, args):
              f'{1000 * LAID_HEIGHT_TOLERANCE_M:g} mm of lying on the table, from the free end; Eq. 17 with N = 50, the '
              'deployed curve cut at the pattern length; coverage = deployed / '
              f'pattern length. Self-contact ignored. Planner start: {args.start or PlannerSettings().start} '
-             '(nn, numeric; the friction-limited start plans with the table friction of the row).', '',
+             '(nn, numeric; the friction-limited start plans with the table friction of the row); planned curve: '
+             f'{args.planned_curve or PlannerSettings().planned_curve} (PlannerSettings.planned_curve).', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:
@@ -146,6 +147,8 @@ def main():
     ap.add_argument('--patterns', default='all')
     ap.add_argument('--start', default=None, choices=('tangent', 'achievable'),
                     help="the planner's start (PlannerSettings.start; default: the planner's default)")
+    ap.add_argument('--planned-curve', default=None, choices=('closest', 'spread'),
+                    help="the curve the nodes are planned on (PlannerSettings.planned_curve; default: the planner's)")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
@@ -164,6 +167,8 @@ def main():
     add_results_argument(ap)
     args = ap.parse_args()
     start_used = args.start or PlannerSettings().start
+    extra = {**({'start': args.start} if args.start else {}),
+             **({'planned_curve': args.planned_curve} if args.planned_curve else {})}
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')
@@ -185,8 +190,7 @@ def main():
                             t, p, q = published_trajectory(name)
                             start = tuple(P[0])
                         elif method == 'nn_refined':
-                            planner = PlannerSettings(friction=FRICTION_LEVELS[fr],
-                                                      **({'start': args.start} if args.start else {}))
+                            planner = PlannerSettings(friction=FRICTION_LEVELS[fr], **extra)
                             best, record = refine_plan(
                                 P, rod, plan_trajectory(P, rod, planner), planner,
                                 SimulationSettings(friction=FRICTION_LEVELS[fr],
@@ -204,8 +208,7 @@ def main():
                                             f'simulations, CPU {record["cpu_time_s"]:.0f} s, gains {gains}; ')
                         else:
                             plan = plan_trajectory(P, rod, PlannerSettings(
-                                method=method, friction=FRICTION_LEVELS[fr],
-                                **({'start': args.start} if args.start else {})))
+                                method=method, friction=FRICTION_LEVELS[fr], **extra))
                             t, p, q, start = plan.t, plan.position, plan.quaternion, None
                         if args.save_traj:
                             from rod_deploy.planning.trajectory_io import write_trajectory_csv

@@ -18,3 +18,25 @@ def clamped_cantilever():
         rod.clamp_theta(0)
         return rod
     return make
+
+
+@pytest.fixture
+def rounded_zigzag():
+    """The acceptance rehearsal's zig-zag: legs at +-45 degrees, 90-degree corners rounded to ``radius_m``
+    (|kappa_bar| 1.4 for rod #3), 5 corners, legs 9.9 cm between the corner points (0.07 m apart in x)."""
+    radius_m, corners, leg_m = 0.025, 5, 0.07 * np.sqrt(2)
+    pts, heading, p = [np.zeros(2)], np.pi / 4, np.zeros(2)
+    for k in range(corners + 1):
+        straight = leg_m - 2 * radius_m * np.tan(np.pi / 4) if 0 < k < corners else leg_m - radius_m
+        for u in np.linspace(0, straight, 40)[1:]:
+            pts.append(p + u * np.array([np.cos(heading), np.sin(heading)]))
+        p = pts[-1]
+        if k == corners:
+            break
+        turn = -np.pi / 2 if k % 2 == 0 else np.pi / 2
+        centre = p + radius_m * np.sign(turn) * np.array([-np.sin(heading), np.cos(heading)])
+        a0 = np.arctan2(*(p - centre)[::-1])
+        for a in np.linspace(a0, a0 + turn, 30)[1:]:
+            pts.append(centre + radius_m * np.array([np.cos(a), np.sin(a)]))
+        p, heading = pts[-1], heading + turn
+    return np.array(pts)

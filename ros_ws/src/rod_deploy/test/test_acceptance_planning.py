@@ -108,3 +108,26 @@ def test_smooth_patterns_pass_the_check_between_nodes():
     pat = process_pattern(np.column_stack([0.068 * np.sin(th), 0.068 * (1 - np.cos(th))]))
     assert pat.peak_bend[0] == pytest.approx(np.abs(pat.kappa).max(), rel=0.02)
     plan_trajectory(np.column_stack([0.068 * np.sin(th), 0.068 * (1 - np.cos(th))]), ROD, PlannerSettings())
+
+
+def test_a_planned_curve_far_from_the_pattern_is_reported(tmp_path, capsys, rounded_zigzag):
+    """No silent wrong output: a rounded zig-zag (90-degree corners of radius 2.5 cm, |kappa_bar| 1.4 on rod #3)
+    is planned on a curve with wider corners, centimetres off the pattern (simulated 2.7-4.3 cm e_mean); plan says
+    how far and where (JSON line and a note). A line is planned on itself: 0 and no note."""
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    for name, pts in (('zigzag', rounded_zigzag), ('line', np.column_stack([np.linspace(0, 0.4, 50),
+                                                                              np.zeros(50)]))):
+        np.savetxt(tmp_path / f'{name}.txt', pts)
+        assert main(['plan', '--pattern', str(tmp_path / f'{name}.txt'), '--rod', str(rod), '--out',
+                     str(tmp_path / f'{name}.csv')]) == 0
+        out = capsys.readouterr()
+        summary = json.loads(out.out.strip().splitlines()[-1])
+        if name == 'zigzag':
+            assert summary['planned_curve_max_deviation_m'] > 0.02
+            x, y = summary['planned_curve_deviation_at']
+            assert np.min(np.hypot(pts[:, 0] - x, pts[:, 1] - y)) < 0.003          # a point of the pattern
+            assert re.search(r'planned curve .* strays up to \d+\.\d cm from the pattern, at \(', out.err)
+        else:
+            assert summary['planned_curve_max_deviation_m'] < 1e-4
+            assert 'strays' not in out.err

@@ -48,7 +48,7 @@ def test_no_gripper_jump_where_the_curvature_jumps():
     # a 30 cm lead, then a curl of radius 1.7 cm (kappa_bar 2): the pattern's curvature jumps by 2 within a node,
     # and with it the optimal grasp, by about 20 cm at ls_bar 17 (28 cm per 5 mm node before the rate limit)
     pts = lead_then_curl(0.3, 0.017)
-    plan = plan_trajectory(pts, ROD, PlannerSettings())
+    plan = plan_trajectory(pts, ROD, PlannerSettings(planned_curve='spread'))
     raw = plan_trajectory(pts, ROD, PlannerSettings(max_kappa_bar_rate=np.inf))   # Alg. 4: the pattern's own
     # the grasp in the pattern's local frame: at most rate x node spacing x |dq/dkappa_bar| (6 L_gb) per node
     local = np.linalg.norm(np.diff(plan.grasp_position, axis=0), axis=1) * LGB
@@ -59,9 +59,13 @@ def test_no_gripper_jump_where_the_curvature_jumps():
     k = plan.first_grasp_index
     assert np.linalg.norm(np.diff(plan.position[k:], axis=0), axis=1).max() < 0.08
     assert np.linalg.norm(np.diff(raw.position[k:], axis=0), axis=1).max() > 0.14
-    # the contact points and tangents are the pattern's: only the curvature asked of the grasp solver changes
+    # spread: the contact points and tangents are the pattern's, only the curvature asked of the grasp solver changes
     np.testing.assert_allclose(plan.pattern.xy, raw.pattern.xy)
     assert np.sum(plan.inputs[:, 2]) == pytest.approx(np.sum(raw.inputs[:, 2]), rel=1e-9)
+    # closest (the default): the nodes on one curve with the limited curvature; the gripper does not jump either
+    closest = plan_trajectory(pts, ROD, PlannerSettings())
+    assert np.linalg.norm(np.diff(closest.grasp_position, axis=0), axis=1).max() * LGB < 0.015
+    assert np.linalg.norm(np.diff(closest.position[k:], axis=0), axis=1).max() < 0.08
 
 
 def test_a_bend_friction_cannot_hold_is_refused_with_the_point():
@@ -84,12 +88,63 @@ def test_the_default_rate_scales_with_the_square_root_of_friction():
     # a change d kappa_bar needs a ramp of about L_gb sqrt(8 d kappa_bar / mu): its slope scales with sqrt(mu)
     assert default_max_rate(0.5) == pytest.approx(0.35)
     assert default_max_rate(2.0) == pytest.approx(0.70)
-    # a 20 cm lead into an arc of radius 6 cm (kappa_bar 0.57 at once): spread at friction 0.5, less at 2
+    # a 20 cm lead into an arc of radius 6 cm (kappa_bar 0.57 at once): spread at friction 0.5, less at 2 (the
+    # closest curve need not use all of the rate it may: at 2 it lies within 0.4 mm of the pattern at 0.37 per L_gb)
     pts = lead_then_curl(0.2, 0.06, turn_rad=2.0)
     h = STEP / LGB
     rates = {}
     for mu in (0.5, 2.0):
-        plan = plan_trajectory(pts, ROD, PlannerSettings(friction=mu))
-        rates[mu] = np.abs(np.diff(plan.inputs[:, 2])).max() / h
-        assert rates[mu] <= default_max_rate(mu) * 1.011
-    assert rates[2.0] > 1.5 * rates[0.5]
+        for planned_curve in ('spread', 'closest'):
+            plan = plan_trajectory(pts, ROD, PlannerSettings(friction=mu, planned_curve=planned_curve))
+            rates[mu, planned_curve] = np.abs(np.diff(plan.inputs[:, 2])).max() / h
+            assert rates[mu, planned_curve] <= default_max_rate(mu) * 1.011
+    assert rates[2.0, 'spread'] > 1.5 * rates[0.5, 'spread']
+
+
+def test_the_closest_curve_keeps_the_limits_and_stays_nearer_the_pattern_than_the_spread_bends(rounded_zigzag):
+    """A rounded zig-zag asks |kappa_bar| 1.4 at its corners, 4 times more than the rate 0.35 per L_gb reaches in a
+    corner: spread symmetrically, each widened corner shortens the curve and the later nodes lag along the pattern
+    (4.3 cm e_mean simulated on the rehearsal's zig-zag). The closest curve respects the same limits, is one curve
+    (points, tangents and curvature agree) and lies nearer the pattern at equal arc length."""
+    from rod_deploy.planning.achievable_start import friction_curvature_limit, integrate_curvature
+    from rod_deploy.deployment.metrics import eq17_error
+    pts = rounded_zigzag
+    spread = plan_trajectory(pts, ROD, PlannerSettings(planned_curve='spread'))
+    closest = plan_trajectory(pts, ROD, PlannerSettings())
+    given, h = closest.drawn_pattern, STEP / LGB
+    assert abs(given.kappa).max() * LGB > 1.3
+    kb = closest.inputs[:, 2]
+    # (1 % the tolerance of limit_curvature_rate, 2 % the clip to the start's friction cap after it)
+    assert np.abs(np.diff(kb)).max() <= default_max_rate(0.5) * h * 1.03
+    assert np.all(np.abs(kb) <= friction_curvature_limit(given.s, LGB, 0.5) * LGB + 1e-9)
+    # one curve: its curvature integrated from its first point and tangent gives its points and tangents
+    c = closest.pattern
+    xy, theta = integrate_curvature(c.s, np.arctan2(c.tangent[0, 1], c.tangent[0, 0]), c.kappa, c.xy[0])
+    np.testing.assert_allclose(xy, c.xy, atol=1e-9)
+    np.testing.assert_allclose(-c.kappa * LGB, kb, atol=1e-9)
+    np.testing.assert_allclose(closest.asked_xy, c.xy, atol=1e-6)
+    np.testing.assert_allclose(c.xy[0], given.xy[0], atol=1e-9)                 # the free end on the pattern
+    # nearer the pattern than the spread curvature's curve, by a wide margin
+    e_spread = eq17_error(given.xy, spread.asked_xy)['e_mean_cm']
+    e_closest = eq17_error(given.xy, closest.asked_xy)['e_mean_cm']
+    assert e_closest < 0.7 * e_spread
+    assert closest.asked_deviation()[0] < spread.asked_deviation()[0]
+
+
+def test_a_pattern_within_the_limits_is_planned_on_itself():
+    # a circle arc of radius 2 L_gb (kappa_bar 0.5) after a 25 cm lead ramped in within the rate: nothing to change
+    s = np.linspace(0, 0.55, 400)
+    sb = s / LGB
+    ramp_start, ramp_len = 0.25 / LGB, 0.5 / 0.3
+    kb = 0.5 * np.clip((sb - ramp_start) / ramp_len, 0, 1)
+    from rod_deploy.planning.achievable_start import integrate_curvature
+    pts, _ = integrate_curvature(s, 0.3, kb / LGB, np.zeros(2))
+    plan = plan_trajectory(pts, ROD, PlannerSettings())
+    assert plan.asked_deviation()[0] < 5e-4
+    assert np.linalg.norm(plan.pattern.xy - plan.drawn_pattern.xy, axis=1).max() < 5e-4
+    # whichever curve is planned on, it is the nearer of the two to the pattern (mean distance over the nodes)
+    spread = plan_trajectory(pts, ROD, PlannerSettings(planned_curve='spread'))
+    near = [np.mean(np.linalg.norm(p.asked_xy - p.drawn_pattern.xy, axis=1)) for p in (plan, spread)]
+    assert near[0] <= near[1]
+    with pytest.raises(PlanningError, match='planned_curve'):
+        plan_trajectory(pts, ROD, PlannerSettings(planned_curve='nearest'))

@@ -33,6 +33,8 @@ from rod_deploy.planning.curvature_rate import DEFAULT_MAX_RATE, DEFAULT_RATE_FR
 
 #: a friction-limited start further than this from the pattern is reported on stderr [m]
 START_NOTE_M = 0.005
+#: a planned curve (what the grasps ask the rod to lay) further than this from the pattern is reported on stderr [m]
+PLANNED_CURVE_NOTE_M = 0.01
 
 
 def register(subparsers):
@@ -114,6 +116,9 @@ def run(args) -> int:
         summary['start_max_deviation_m'] = round(dev_m, 4)
         summary['pattern_max_abs_kappa_bar'] = round(float(abs(plan.drawn_pattern.kappa).max())
                                                      * rod.gravito_bending_length_m, 4)
+        dev_m, i = plan.asked_deviation()
+        summary['planned_curve_max_deviation_m'] = round(dev_m, 4)
+        summary['planned_curve_deviation_at'] = [round(float(v), 4) for v in plan.drawn_pattern.xy[i]]
     if refined:
         summary['refine'] = refine_record
     if args.plot:
@@ -134,6 +139,14 @@ def run(args) -> int:
               f'{summary["start_replaced_m"]:.3f} m of the pattern by a curve up to '
               f'{1000 * summary["start_max_deviation_m"]:.0f} mm away from it (the free end cannot hold the '
               f'pattern\'s curvature there); --start tangent plans every node on the pattern', file=sys.stderr)
+    if summary.get('planned_curve_max_deviation_m', 0.0) > PLANNED_CURVE_NOTE_M:
+        x, y = summary['planned_curve_deviation_at']
+        print(f'rod-deploy plan: note: the planned curve (the friction-limited start, bends widened by the curvature '
+              f'rate limit) strays up to {100 * summary["planned_curve_max_deviation_m"]:.1f} cm from the pattern, at '
+              f'({x:.4f}, {y:.4f}) m (|kappa_bar| up to {summary["pattern_max_abs_kappa_bar"]:.2g} on the pattern, '
+              f'{summary["max_abs_kappa_bar"]:.2g} on the planned curve): the rod is laid along the planned curve, '
+              f'not the pattern, there; a wider drawing or more table friction lets it follow the pattern',
+              file=sys.stderr)
     kappa_bar_given = summary.get('pattern_max_abs_kappa_bar', summary['max_abs_kappa_bar'])
     if summary['max_abs_kappa_bar'] > 1.0:
         # the planned curve's largest bend: the replaced (friction-limited) start may bend more than the pattern

@@ -101,7 +101,8 @@ class GraspTrajectoryGenerator(Node):
         self.published += 1
         summary = {'poses': len(plan.t), 'pattern_nodes': len(plan.pattern.s),
                    'pattern_length_m': round(plan.pattern.length, 4), 'duration_s': round(float(plan.t[-1]), 2),
-                   'method': plan.method, 'planning_time_s': round(plan.timings_s['total'], 4)}
+                   'method': plan.method, 'planning_time_s': round(plan.timings_s['total'], 4),
+                   'planned_curve_max_deviation_m': round(plan.asked_deviation()[0], 4)}
         self._publish_status(DiagnosticStatus.OK, 'trajectory published', summary)
         self.get_logger().info(f'published /gripper_trajectory: {summary}')
 

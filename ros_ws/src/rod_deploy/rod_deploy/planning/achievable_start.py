@@ -93,7 +93,7 @@ def _cumtrapz(f, ds):
     return np.concatenate([np.zeros((1,) + f.shape[1:]), np.cumsum(inc, axis=0)])
 
 
-def _integrate(s, theta0, kappa, origin):
+def integrate_curvature(s, theta0, kappa, origin):
     """Curve with heading theta0 + int kappa from ``origin`` (trapezoids): (xy (m, 2), heading (m,))."""
     ds = np.diff(s)
     theta = theta0 + np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * ds)])
@@ -127,7 +127,7 @@ def achievable_start(pattern, gravito_bending_length_m: float, friction: float, 
 
     def curve(x):
         kappa = kappa_p + hat @ x[1:] / Lgb
-        xy, theta = _integrate(sc, theta_p + x[0], kappa, pattern.xy[0])
+        xy, theta = integrate_curvature(sc, theta_p + x[0], kappa, pattern.xy[0])
         return kappa, xy, theta
 
     ds = np.diff(sc)

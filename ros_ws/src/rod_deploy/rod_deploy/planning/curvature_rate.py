@@ -63,3 +63,72 @@ def limit_curvature_rate(kappa_bar, step_bar, max_rate, max_iterations=20000):
         k[:-1] += excess / 3.0
         k[1:] -= excess / 3.0
     raise RuntimeError('the curvature rate limit did not converge')   # pragma: no cover (a bounded diffusion)
+
+
+#: knot spacing of the closest rate-limited curve's curvature [L_gb] (piecewise linear between knots)
+CLOSEST_KNOT_SPACING_BAR = 0.25
+#: weight of d kappa_bar / d(s / L_gb) against the distance from the pattern [L_gb] in the closest curve's fit
+#: (a little, so that the fit does not wiggle within the limit)
+CLOSEST_RATE_WEIGHT = 0.1
+
+
+def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m, max_rate, cap_bar):
+    """The curve closest to ``pattern`` (least squares on the nodes at equal arc length, Eq. 17's pairing; the free
+    end at the pattern's first point) whose curvature changes at most ``max_rate`` per L_gb and stays within
+    ``cap_bar`` (m,) [kappa_bar] at each node (the friction-limited start): a ProcessedPattern on the same nodes whose
+    points, tangents and curvature belong to one curve.
+
+    Why: the rod lays the curvature its grasps ask for, not the contact points (a rounded zig-zag on rod #3 lay
+    1.2 cm from the curve of its asked curvature, 4.3 cm from the pattern). :func:`limit_curvature_rate` spreads a
+    bend symmetrically, which keeps the turning but rounds a corner wider: the curve comes out shorter around it and
+    every later node lags along the pattern. Here the unknowns are the curvature at knots every
+    CLOSEST_KNOT_SPACING_BAR L_gb (piecewise linear, so the rate is the slope between knots) and the first heading,
+    started from ``kappa0`` (m,) [1/m] and ``theta0`` [rad] (the spread curvature and the start heading); the limits
+    are penalties, then enforced exactly (``limit_curvature_rate``, a clip) and the curve integrated once more."""
+    from scipy.optimize import least_squares
+
+    from .achievable_start import _cumtrapz, integrate_curvature
+    from .trajectory import ProcessedPattern
+
+    Lgb = gravito_bending_length_m
+    s, target = pattern.s, pattern.xy
+    n = len(s)
+    n_knots = max(int(np.ceil(s[-1] / (CLOSEST_KNOT_SPACING_BAR * Lgb))), 1) + 1
+    s_knots = np.linspace(0.0, s[-1], n_knots)
+    h_bar = (s_knots[1] - s_knots[0]) / Lgb
+    hat = np.clip(1.0 - np.abs(s[:, None] - s_knots[None, :]) / (s_knots[1] - s_knots[0]), 0.0, None)   # (n, k)
+    cap_knots = np.interp(s_knots, s, cap_bar)
+    ds = np.diff(s)
+    dtheta = np.column_stack([np.ones(n), _cumtrapz(hat, ds) / Lgb])                  # d theta / d(theta0, c)
+    D = np.diff(np.eye(n_knots), axis=0) / h_bar
+    w_pen = 10.0 * np.sqrt(n)
+
+    def curve(x):
+        return integrate_curvature(s, theta0 + x[0], hat @ x[1:] / Lgb, target[0])
+
+    def residuals(x):
+        xy, _ = curve(x)
+        c = x[1:]
+        rate = D @ c
+        return np.concatenate([((xy - target) / Lgb).ravel(), w_pen * np.maximum(np.abs(rate) - max_rate, 0.0),
+                               w_pen * np.maximum(np.abs(c) - cap_knots, 0.0), CLOSEST_RATE_WEIGHT * rate])
+
+    def jacobian(x):
+        _, theta = curve(x)
+        c = x[1:]
+        rate = D @ c
+        dx = _cumtrapz(-np.sin(theta)[:, None] * dtheta, ds) / Lgb
+        dy = _cumtrapz(np.cos(theta)[:, None] * dtheta, ds) / Lgb
+        zero = np.zeros((n_knots - 1, 1))
+        return np.vstack([np.stack([dx, dy], axis=1).reshape(2 * n, -1),
+                          np.hstack([zero, w_pen * ((np.abs(rate) > max_rate) * np.sign(rate))[:, None] * D]),
+                          np.hstack([np.zeros((n_knots, 1)), w_pen * np.diag((np.abs(c) > cap_knots) * np.sign(c))]),
+                          np.hstack([zero, CLOSEST_RATE_WEIGHT * D])])
+
+    x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb)])
+    sol = least_squares(residuals, x0, jac=jacobian, method='trf', ftol=1e-6, xtol=1e-6, gtol=1e-8, max_nfev=100)
+    kappa_bar = np.clip(hat @ sol.x[1:], -cap_bar, cap_bar)
+    kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
+    xy, theta = integrate_curvature(s, theta0 + sol.x[0], kappa_bar / Lgb, target[0])
+    return ProcessedPattern(s=s.copy(), xy=xy, tangent=np.column_stack([np.cos(theta), np.sin(theta)]),
+                            kappa=kappa_bar / Lgb)

@@ -21,7 +21,13 @@ The curvature asked of the grasp solver changes at most ``max_kappa_bar_rate`` p
 stroke running into a tight curl) is spread over a ramp that keeps the pattern's turning; the contact points and
 tangents stay the pattern's. Without it the optimal grasp,
 which moves 5-6 L_gb per unit of kappa_bar at ls_bar 25, jumps by up to 17 cm between two 5 mm nodes, and the
-sudden change of the bend's moment drags the laid rod (``benchmarks/grasp_jump.py``). With the default start, a
+sudden change of the bend's moment drags the laid rod (``benchmarks/grasp_jump.py``). The nodes are then planned on
+one curve (``planned_curve='closest'``, the default): the curve nearest the pattern at equal arc length whose
+curvature keeps the rate limit and the friction-limited start (``curvature_rate.closest_rate_limited_curve``), its
+points, tangents and curvature agreeing, kept when it is nearer the pattern (mean distance over the nodes) than the
+curve of the spread curvature; otherwise (``'spread'``) the pattern's points and tangents with the spread curvature,
+which rounds a corner wider than the pattern so that the later nodes lag along it (``asked_xy``: the curve the grasps
+ask for, reported by ``rod-deploy plan``). With the default start, a
 planned curve that table friction cannot hold - too tight a bend too close to the free end, where the laid part
 is too short to resist its moment - is refused with the node named (``check_friction_holds``).
 
@@ -51,6 +57,7 @@ from .rod_description import RodDescription
 
 METHODS = ('nn', 'numeric', 'intuitive')
 STARTS = ('tangent', 'achievable')
+PLANNED_CURVES = ('closest', 'spread')
 #: the table friction the 'achievable' start assumes when neither the settings nor the rod give one (medium)
 DEFAULT_FRICTION = 0.5
 #: weight in the smoothing spline of the pattern points within END_ZONE_M of either end (the others: 1)
@@ -85,12 +92,19 @@ class PlannerSettings:
     #: refuse a planned curve that table friction cannot hold (check_friction_holds, with the 'achievable' start);
     #: False plans it anyway (experiments: what such a pattern deploys to)
     check_friction: bool = True
+    #: the curve the nodes are planned on: 'closest' (default) the curve closest to the pattern whose curvature
+    #: respects the rate limit and the friction-limited start (``curvature_rate.closest_rate_limited_curve``; contact
+    #: points, tangents and curvature of one curve); 'spread': the pattern's points and tangents with its curvature
+    #: spread by the rate limit (``limit_curvature_rate``, the grasps asking a curvature the points do not have)
+    planned_curve: str = 'closest'
 
     def validate(self):
         if self.method not in METHODS:
             raise PlanningError(f'unknown method {self.method!r} (one of {", ".join(METHODS)})')
         if self.start not in STARTS:
             raise PlanningError(f'unknown start {self.start!r} (one of {", ".join(STARTS)})')
+        if self.planned_curve not in PLANNED_CURVES:
+            raise PlanningError(f'unknown planned_curve {self.planned_curve!r} (one of {", ".join(PLANNED_CURVES)})')
         if self.friction is not None and not (np.isfinite(self.friction) and self.friction > 0):
             raise PlanningError(f'friction must be positive, got {self.friction}')
         if not (np.isfinite(self.friction_share) and 0 < self.friction_share <= 1):
@@ -134,6 +148,13 @@ class PlannedTrajectory:
     timings_s: dict = field(default_factory=dict)
     #: the processed pattern before the friction-limited start replaced its beginning (``pattern`` when unchanged)
     pattern_as_given: ProcessedPattern | None = None
+    #: the processed pattern with the friction-limited start only (``start_replacement``); ``pattern`` when the
+    #: nodes are planned on it (planned_curve 'spread')
+    start_pattern: ProcessedPattern | None = None
+    #: (m, 2) [m] the curve the grasps ask the rod to lay: the planned curvature (rate-limited, ``inputs``) integrated
+    #: from the free end at the planned curve's first point along its first tangent; None for the intuitive baseline
+    #: (it asks no curvature: its grasp is the same whatever the pattern's)
+    asked_xy: np.ndarray | None = None
 
     @property
     def rotation(self):
@@ -148,14 +169,25 @@ class PlannedTrajectory:
         """(length [m] of the pattern's start that the planned curve replaces, the largest distance [m] of the
         planned curve from the pattern there); (0, 0) when the pattern is planned as given."""
         given = self.pattern_as_given
-        if given is None or given is self.pattern:
+        start = self.start_pattern if self.start_pattern is not None else self.pattern
+        if given is None or given is start:
             return 0.0, 0.0
-        moved = np.flatnonzero(np.linalg.norm(self.pattern.xy - given.xy, axis=1) > tol_m)
+        moved = np.flatnonzero(np.linalg.norm(start.xy - given.xy, axis=1) > tol_m)
         if moved.size == 0:
             return 0.0, 0.0
         k = int(moved[-1]) + 1
-        d = np.linalg.norm(self.pattern.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
+        d = np.linalg.norm(start.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
         return float(given.s[min(k, len(given.s) - 1)]), float(d.max())
+
+    def asked_deviation(self):
+        """(largest distance [m] of the curve the grasps ask for (``asked_xy``) from the pattern as drawn, at equal
+        arc length (Eq. 17's pairing), the node where it is); (0, 0) for the intuitive baseline. It adds up what the
+        planner changes on purpose: the friction-limited start and the curvature rate limit's spread bends."""
+        if self.asked_xy is None:
+            return 0.0, 0
+        d = np.linalg.norm(self.asked_xy - self.drawn_pattern.xy, axis=1)
+        i = int(np.argmax(d))
+        return float(d[i]), i
 
 
 def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
@@ -302,7 +334,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     settings = settings or PlannerSettings()
     settings.validate()
     t0 = time.perf_counter()
-    pattern = given = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
+    pattern = given = start_pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m,
+                                                      settings.end_weight)
     mu = settings.friction or rod.friction or DEFAULT_FRICTION
     if settings.start == 'achievable' and settings.method != 'intuitive':
         from .achievable_start import achievable_start
@@ -311,6 +344,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
         node_inputs(given, rod, settings)
         pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
                                    settings.max_abs_kappa_bar)
+        start_pattern = pattern
     inputs = node_inputs(pattern, rod, settings)
     if settings.check_friction and settings.start == 'achievable' and settings.method != 'intuitive':
         check_friction_holds(pattern, rod, mu, settings.friction_share)
@@ -318,13 +352,34 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
         Lgb = rod.gravito_bending_length_m
         rate = settings.max_kappa_bar_rate if settings.max_kappa_bar_rate is not None else default_max_rate(mu)
         kappa_bar = limit_curvature_rate(inputs[:, 2], settings.step_m / Lgb, rate)
+        from .achievable_start import friction_curvature_limit, integrate_curvature
         if settings.start == 'achievable':
             # a ramp may not bend the start more than friction holds there (where the planned curve does not)
-            from .achievable_start import friction_curvature_limit
             cap = np.maximum(np.abs(inputs[:, 2]),
                              friction_curvature_limit(pattern.s, Lgb, mu, settings.friction_share) * Lgb)
             kappa_bar = np.clip(kappa_bar, -cap, cap)
+        theta0 = np.arctan2(pattern.tangent[0, 1], pattern.tangent[0, 0])
+        asked_xy, _ = integrate_curvature(pattern.s, theta0, -kappa_bar / Lgb, pattern.xy[0])
+        if settings.planned_curve == 'closest' and np.isfinite(rate):
+            from .curvature_rate import closest_rate_limited_curve
+            cap = np.full(len(given.s), 0.9 * settings.max_abs_kappa_bar)
+            if settings.start == 'achievable':
+                cap = np.minimum(cap, friction_curvature_limit(given.s, Lgb, mu, settings.friction_share) * Lgb)
+            closest = closest_rate_limited_curve(given, -kappa_bar / Lgb, theta0, Lgb, rate, cap)
+            # kept only when nearer the pattern (mean distance over the nodes at equal arc length, Eq. 17's e_mean)
+            # than the curve of the spread curvature: the fit's limits and smoothing can leave it further (letter C
+            # on rods #1-#2, our spiral: the friction-limited start held to kappa_max), and then it deployed worse
+            def mean_distance(xy):
+                return float(np.mean(np.linalg.norm(xy - given.xy, axis=1)))
+            if mean_distance(closest.xy) < mean_distance(asked_xy):
+                pattern = closest
+                inputs = node_inputs(pattern, rod, settings)
+                kappa_bar = inputs[:, 2]
+                asked_xy, _ = integrate_curvature(pattern.s, np.arctan2(pattern.tangent[0, 1], pattern.tangent[0, 0]),
+                                                  -kappa_bar / Lgb, pattern.xy[0])
         inputs[:, 2] = kappa_bar
+    else:
+        asked_xy = None
     t1 = time.perf_counter()
     qbar, rotvec = grasps(inputs, settings.method, progress)
     t2 = time.perf_counter()
@@ -356,7 +411,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     t = trajectory_times(all_p, quat, settings.speed_m_s, settings.max_angular_rate_rad_s)
     return PlannedTrajectory(t=t, position=all_p, quaternion=quat, pattern=pattern, inputs=inputs,
                              grasp_position=qbar, grasp_rotvec=rotvec, first_grasp_index=n_lead,
-                             method=settings.method, pattern_as_given=given,
+                             method=settings.method, pattern_as_given=given, start_pattern=start_pattern,
+                             asked_xy=asked_xy,
                              timings_s={'pattern': t1 - t0, 'grasps': t2 - t1, 'total': time.perf_counter() - t0})
 
 
