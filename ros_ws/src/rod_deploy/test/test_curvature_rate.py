@@ -4,7 +4,7 @@ the suspended length per node, and a bend friction cannot hold is refused with t
 import numpy as np
 import pytest
 
-from rod_deploy.planning.curvature_rate import default_max_rate, limit_curvature_rate
+from rod_deploy.planning.curvature_rate import default_max_rate, levenberg_marquardt, limit_curvature_rate
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory
 
@@ -148,3 +148,35 @@ def test_a_pattern_within_the_limits_is_planned_on_itself():
     assert near[0] <= near[1]
     with pytest.raises(PlanningError, match='planned_curve'):
         plan_trajectory(pts, ROD, PlannerSettings(planned_curve='nearest'))
+
+
+def test_levenberg_marquardt_reaches_the_minimum_scipy_reaches():
+    """The closest curve's solver: on Rosenbrock's valley (residuals 10 (y - x^2), 1 - x; minimum at (1, 1)) from
+    the textbook start, and on a nonlinear fit with noise (a damped oscillation), it ends where scipy's
+    least_squares run to tight tolerances ends."""
+    from scipy.optimize import least_squares
+
+    def rosen(x):
+        return np.array([10.0 * (x[1] - x[0] ** 2), 1.0 - x[0]])
+
+    def rosen_jac(x):
+        return np.array([[-20.0 * x[0], 10.0], [-1.0, 0.0]])
+
+    np.testing.assert_allclose(levenberg_marquardt(rosen, rosen_jac, np.array([-1.2, 1.0])), [1.0, 1.0], atol=1e-8)
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 4.0, 80)
+    y = 2.0 * np.exp(-0.7 * t) * np.cos(3.0 * t + 0.4) + 0.02 * rng.standard_normal(t.size)
+
+    def fit(p):
+        return p[0] * np.exp(-p[1] * t) * np.cos(p[2] * t + p[3]) - y
+
+    def fit_jac(p):
+        e, c, s = np.exp(-p[1] * t), np.cos(p[2] * t + p[3]), np.sin(p[2] * t + p[3])
+        return np.column_stack([e * c, -t * p[0] * e * c, -t * p[0] * e * s, -p[0] * e * s])
+
+    p0 = np.array([1.5, 0.5, 2.8, 0.0])
+    ours = levenberg_marquardt(fit, fit_jac, p0)
+    ref = least_squares(fit, p0, jac=fit_jac, method='trf', ftol=1e-14, xtol=1e-14, gtol=1e-14).x
+    np.testing.assert_allclose(ours, ref, atol=1e-7)
+    assert fit(ours) @ fit(ours) <= fit(ref) @ fit(ref) * (1 + 1e-12)

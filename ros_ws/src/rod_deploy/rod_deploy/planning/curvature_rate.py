@@ -135,8 +135,9 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
 def levenberg_marquardt(residuals, jacobian, x0, ftol=1e-10, xtol=1e-10, max_iterations=1000):
     """argmin |residuals(x)|^2 from ``x0``: Levenberg-Marquardt on the normal equations (Cholesky of J^T J plus
     Marquardt's damping, scaled by the largest diagonal seen so far). For the closest curve's few hundred residuals
-    and about a hundred unknowns this costs a tenth of scipy's ``least_squares`` (trf), whose SVD of J per step took
-    90 % of the planning time (benchmarks/planning_speed.py). Stops when a step lowers the cost by less than ``ftol``
+    and about a hundred unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose SVD of J
+    per step took 90 % of the planning time (benchmarks/planning_speed.py), and it runs to the minimum (trf with
+    100 evaluations stopped short of it). Stops when a step lowers the cost by less than ``ftol``
     of it, or changes x by less than ``xtol`` (relative), or after ``max_iterations`` Jacobians."""
     from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
