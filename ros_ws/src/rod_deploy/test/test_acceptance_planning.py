@@ -131,3 +131,21 @@ def test_a_planned_curve_far_from_the_pattern_is_reported(tmp_path, capsys, roun
         else:
             assert summary['planned_curve_max_deviation_m'] < 1e-4
             assert 'strays' not in out.err
+
+
+def test_plan_planned_curve_flag_chooses_the_curve(tmp_path, capsys, rounded_zigzag):
+    """``--planned-curve spread`` plans the zig-zag on its points with the bends spread by the rate limit: farther
+    from the pattern than the default (closest) curve; a bad value is refused by argparse (exit 2)."""
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    np.savetxt(tmp_path / 'z.txt', rounded_zigzag)
+    deviation = {}
+    for curve in ('closest', 'spread'):
+        assert main(['plan', '--pattern', str(tmp_path / 'z.txt'), '--rod', str(rod), '--out',
+                     str(tmp_path / f'{curve}.csv'), '--planned-curve', curve]) == 0
+        deviation[curve] = json.loads(capsys.readouterr().out.strip().splitlines()[-1])['planned_curve_max_deviation_m']
+    assert deviation['spread'] > 1.5 * deviation['closest']
+    with pytest.raises(SystemExit) as e:
+        main(['plan', '--pattern', str(tmp_path / 'z.txt'), '--rod', str(rod), '--out', str(tmp_path / 'x.csv'),
+              '--planned-curve', 'nearest'])
+    assert e.value.code == 2

@@ -60,6 +60,9 @@ def register(subparsers):
                    help='largest change of the planned kappa_bar per L_gb of pattern (default '
                         f'{DEFAULT_MAX_RATE:g} at friction {DEFAULT_RATE_FRICTION:g}, scaled by sqrt(friction / '
                         f'{DEFAULT_RATE_FRICTION:g}); inf: the pattern\'s own curvature, as Alg. 4)')
+    p.add_argument('--planned-curve', choices=('closest', 'spread'), default=None,
+                   help='closest (default): plan on the curve nearest the pattern within the rate limit and the '
+                        'friction-limited start; spread: the pattern\'s points with its curvature spread by the limit')
     p.add_argument('--refine', type=int, default=None, metavar='N',
                    help='refine the plan with N simulations of our DER (N >= 2: the unrefined plan and at least one '
                         'template; default off)')
@@ -85,6 +88,7 @@ def run(args) -> int:
                               object_index=args.object)
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
                                    speed_m_s=args.speed, **({'start': args.start} if args.start else {}),
+                                   **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
                                    **({'max_kappa_bar_rate': args.max_kappa_bar_rate}
                                       if args.max_kappa_bar_rate is not None else {}))
         bar = None
