@@ -87,6 +87,9 @@ class ElasticaSettings:
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
     friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane: creeps),
     #                                   'pyelastica' (RodPlaneContactWithAnisotropicFriction: creeps and rolls)
+    #: the stick law's normal force N: False, PyElastica's plane response (its elements' pushing force, half to each
+    #: node, no penalty spring or damper); True: the normal force the plane applies to the node (experiment)
+    applied_normal: bool = False
 
 
 def rotary_inertia_scaled(rod_e, scale):
@@ -159,23 +162,30 @@ class CentrelineCoulombPlane(ea.NoContact):
 
 
 @njit(cache=True)
-def _nodal_coulomb_stick(origin, normal, surface_tol, k, nu, mu, dt, radius, mass, position, velocity,
-                         internal_forces, external_forces):
+def _nodal_coulomb_stick(origin, normal, surface_tol, k, nu, mu, dt, applied_normal, radius, mass, position,
+                         velocity, internal_forces, external_forces):
     """PyElastica's rod-plane normal force, then Coulomb friction on the nodes' centreline velocity as a stick /
     slip projection over the step: a node in contact (normal force N: half of each adjacent element's) gets the
     tangential force that stops it within this step, -(F_t + m v_t / dt), when that is within mu N (sticking, the
     node then stays exactly still), else mu N against its trial velocity v_t + dt F_t / m (slipping). The
     position-Verlet velocity update v += dt (F + f) / m then gives v_t = 0 on a sticking node."""
+    n_before = normal[0] * external_forces[0] + normal[1] * external_forces[1] + normal[2] * external_forces[2]
     n_mag, no_contact = _calculate_contact_forces_rod_plane(origin, normal, surface_tol, k, nu, radius, mass,
                                                             position, velocity, internal_forces, external_forces)
     n_el = n_mag.shape[0]
-    in_contact = np.ones(n_el)
-    for j in no_contact:
-        in_contact[j] = 0.0
     n_node = np.zeros(n_el + 1)
-    for j in range(n_el):
-        n_node[j] += 0.5 * in_contact[j] * n_mag[j]
-        n_node[j + 1] += 0.5 * in_contact[j] * n_mag[j]
+    if applied_normal:
+        # the normal force the plane applies to each node (response, penalty spring and damper as distributed)
+        n_after = normal[0] * external_forces[0] + normal[1] * external_forces[1] + normal[2] * external_forces[2]
+        for i in range(n_el + 1):
+            n_node[i] = max(n_after[i] - n_before[i], 0.0)
+    else:
+        in_contact = np.ones(n_el)
+        for j in no_contact:
+            in_contact[j] = 0.0
+        for j in range(n_el):
+            n_node[j] += 0.5 * in_contact[j] * n_mag[j]
+            n_node[j + 1] += 0.5 * in_contact[j] * n_mag[j]
     for i in range(n_el + 1):
         if n_node[i] <= 0.0:
             continue
@@ -205,9 +215,10 @@ class NodalCoulombStickPlane(ea.NoContact):
     were changed together): not the tolerance but, as far as measured, the step's friction impulse sets it.
     Coulomb's law has no creep: the stick force here holds the node exactly, at any load up to mu N."""
 
-    def __init__(self, k, nu, mu, dt):
+    def __init__(self, k, nu, mu, dt, applied_normal=False):
         super().__init__()
         self.k, self.nu, self.mu, self.dt = np.float64(k), np.float64(nu), np.float64(mu), np.float64(dt)
+        self.applied_normal = bool(applied_normal)
         self.surface_tol = np.float64(1.0e-4)
 
     @property
@@ -216,7 +227,8 @@ class NodalCoulombStickPlane(ea.NoContact):
 
     def apply_contact(self, system_one, system_two, time=np.float64(0.0)):
         _nodal_coulomb_stick(system_two.origin, system_two.normal, self.surface_tol, self.k, self.nu, self.mu,
-                             self.dt, system_one.radius, system_one.mass, system_one.position_collection,
+                             self.dt, self.applied_normal, system_one.radius, system_one.mass,
+                             system_one.position_collection,
                              system_one.velocity_collection, system_one.internal_forces,
                              system_one.external_forces)
 
@@ -314,7 +326,8 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
                 slip_velocity_tol=s.slip_velocity_tol_m_s)
         elif s.friction_law == 'stick':
             sim.detect_contact_between(rod_e, plane).using(
-                NodalCoulombStickPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction, dt=s.dt_s)
+                NodalCoulombStickPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction, dt=s.dt_s,
+                applied_normal=s.applied_normal)
         else:
             sim.detect_contact_between(rod_e, plane).using(
                 ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
@@ -451,6 +464,9 @@ def main():
                          "no creep); centreline: on the elements with PyElastica's slip-tolerance switch "
                          "(CentrelineCoulombPlane, creeps); pyelastica: PyElastica's anisotropic friction (creeps, "
                          'and rolls sideways)')
+    ap.add_argument('--applied-normal', action='store_true',
+                    help="stick law: bound the friction by the normal force the plane applies to the node (PyElastica's "
+                         'plane response, penalty spring and damper) instead of the plane response alone')
     ap.add_argument('--traj-dir', metavar='DIR',
                     help='read each trajectory from DIR/traj_PATTERN_METHOD_rodK_FRICTION.csv (written by '
                          'deployment_table.py --save-traj; e.g. the method nn_refined) instead of planning it')
@@ -466,7 +482,7 @@ def main():
     args = ap.parse_args()
     settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
                                 slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale,
-                                friction_law=args.friction_law)
+                                friction_law=args.friction_law, applied_normal=args.applied_normal)
     t_all = time.perf_counter()
     checks = []
     if args.merge:
@@ -577,12 +593,16 @@ def _write(out, rows, checks, s, wall):
              + (f'with Coulomb friction on the centreline (`CentrelineCoulombPlane`: no rolling; static / kinetic '
                 f'switch at slip tolerance {s.slip_velocity_tol_m_s:g} m/s)' if s.friction_law == 'centreline' else
                 'with Coulomb friction on the nodes\' centreline velocity, stick / slip over the step '
-                '(`NodalCoulombStickPlane`: no rolling, no slip tolerance, a sticking node held still)'
+                '(`NodalCoulombStickPlane`: no rolling, no slip tolerance, a sticking node held still; friction '
+                + ('bounded by the normal force the plane applies to the node, `--applied-normal`)' if s.applied_normal
+                   else "bounded by PyElastica's plane response on the elements, half to each node)")
                 if s.friction_law == 'stick' else
                 f'with PyElastica\'s friction (static / kinetic mu, slip tolerance {s.slip_velocity_tol_m_s:g} m/s, '
                 f'sideways on the rolling slip)') + f'; hanging {s.hang_settle_s:g} s first, gripper at 0.01 m/s, '
              f'{s.settle_s:g} s still at the end. Eq. 17, N = 50 (ours). "ours": our DER simulator\'s e_mean '
              f'from `deployment_table.md` in the same folder (or the tables given by --ours).', '',
+             'Command: `PYTHONPATH=ros_ws/src/rod_deploy .venv-bench/bin/python benchmarks/pyelastica_replay.py '
+             + ' '.join(sys.argv[1:]) + '`', '',
              '## Closed forms (`--validate`; the rod material of the table\'s rods)', '',
              '| rod | check | PyElastica mm | closed form mm | rel. error |', '|---|---|---|---|---|']
     for rod_id, name, got, want in checks:
@@ -590,7 +610,7 @@ def _write(out, rows, checks, s, wall):
     if not rows:
         out.write_text('\n'.join(lines) + '\n')
         return
-    lines = lines[:3] + ['', 'The closed-form checks of this set-up: `pyelastica_validation.md`.']
+    lines = lines[:5] + ['', 'The closed-form checks of this set-up: `pyelastica_validation.md`.']
     lines += ['', '## Deployments', '',
               '| rod | friction | pattern | planner | PyElastica e_mean cm | sigma cm | coverage | free end moved mm | '
               'ours e_mean cm | difference cm | wall s (batch / rods) | note |',
