@@ -128,7 +128,7 @@ def main():
         if r['t'] - last_t < args.every - 1e-9 and i != len(rows) - 1:
             continue
         last_t = r['t']
-        lines.append(f"| {r['t']:.0f} | ({1e3 * r['end_a'][0]:.1f}, {1e3 * r['end_a'][1]:.1f}) | "
+        lines.append(f"| {r['t']:.1f} | ({1e3 * r['end_a'][0]:.1f}, {1e3 * r['end_a'][1]:.1f}) | "
                      f"({1e3 * r['end_b'][0]:.1f}, {1e3 * r['end_b'][1]:.1f}) | {100 * r['laid_m']:.0f} | "
                      f"{1e3 * r['max_laid']:.2f} ({100 * r['s_max_laid']:.0f}) | {1e3 * r['mean_laid']:.2f} | "
                      f"{1e3 * r['max_all']:.2f} ({100 * r['s_max_all']:.0f}) | "
