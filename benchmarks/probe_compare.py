@@ -10,11 +10,12 @@ settings) compared over time at equal material coordinate: where and when the tw
 
 Both rods are sampled at the material coordinate s (arc length of the unstretched rod from the free end; node i of a
 rod of N edges at s = i L / N) on the coarser rod's nodes, the finer one linearly interpolated. Per snapshot time
-(replay time, 0 = the gripper leaves the hanging pose; each snapshot of the first file paired with the second's nearest, within 0.05 s): the free end's position in
-each, the largest and mean distance between the two rods over the part lying on the table in both (centreline within
+(replay time, 0 = the gripper leaves the hanging pose; each snapshot of the first file paired with the second's
+nearest, within 0.05 s): the free end's position in each, the largest and mean distance between the two rods over the part lying on the table in both (centreline within
 0.5 mm of the contact height) and over the whole rod, and where along s the largest one is. At the end: the error
 profile of each (``error_profile.profile``: the error at touch-down against the pattern, and the motion on the table
-after touch-down) per stretch of the pattern, side by side.
+after touch-down) per stretch of the pattern, side by side. With the normal forces ``replay_probe.py`` records: the
+normal force that bounds friction summed over the touch-down zone, and how high the laid rod lies.
 """
 from __future__ import annotations
 

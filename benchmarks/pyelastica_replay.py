@@ -12,9 +12,9 @@ radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and d
 plane's response force) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
 step (``NodalCoulombStickPlane``, the default since issue #10's third look: a sticking node is held still at any load
 up to mu N, N the normal force the plane applies to the node since the study of the two simulators' disagreement,
-``sims_disagreement.md``, with 5 mm elements instead of 1 cm; ``--friction-law centreline``: ``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the
-slip tolerance on the elements, under which a laid rod loaded below mu N creeps (the published circle's free end
-0.1 mm/s after the release); ``--friction-law pyelastica``: PyElastica's own
+``sims_disagreement.md``, with 5 mm elements instead of 1 cm; ``--friction-law centreline``:
+``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the slip tolerance on the elements, under which a
+laid rod loaded below mu N creeps (the published circle's free end 0.1 mm/s after the release); ``--friction-law pyelastica``: PyElastica's own
 ``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
 a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
@@ -173,7 +173,8 @@ class CentrelineCoulombPlane(ea.NoContact):
 def _nodal_coulomb_stick(origin, normal, surface_tol, k, nu, mu, dt, applied_normal, radius, mass, position,
                          velocity, internal_forces, external_forces):
     """PyElastica's rod-plane normal force, then Coulomb friction on the nodes' centreline velocity as a stick /
-    slip projection over the step: a node in contact (normal force N: half of each adjacent element's) gets the
+    slip projection over the step: a node in contact (normal force N: with ``applied_normal`` the normal force the
+    plane applies to the node, else half of each adjacent element's plane response) gets the
     tangential force that stops it within this step, -(F_t + m v_t / dt), when that is within mu N (sticking, the
     node then stays exactly still), else mu N against its trial velocity v_t + dt F_t / m (slipping). The
     position-Verlet velocity update v += dt (F + f) / m then gives v_t = 0 on a sticking node."""
