@@ -11,9 +11,10 @@ model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet st
 radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
 plane's response force) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
 step (``NodalCoulombStickPlane``, the default since issue #10's third look: a sticking node is held still at any load
-up to mu N; ``--friction-law centreline``: ``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the
-slip tolerance on the elements, under which a laid rod loaded below mu N creeps (the published circle's free end
-0.1 mm/s after the release); ``--friction-law pyelastica``: PyElastica's own
+up to mu N, N the normal force the plane applies to the node since the study of the two simulators' disagreement,
+``sims_disagreement.md``, with 5 mm elements instead of 1 cm; ``--friction-law centreline``:
+``CentrelineCoulombPlane``, PyElastica's static / kinetic switch at the slip tolerance on the elements, under which a
+laid rod loaded below mu N creeps (the published circle's free end 0.1 mm/s after the release); ``--friction-law pyelastica``: PyElastica's own
 ``RodPlaneContactWithAnisotropicFriction``, the same mu forward, backward and sideways, sideways on the rolling slip:
 a laid rod rolls sideways under any sideways load, see ``friction_canonical.py``), uniform viscous damping (the same
 2/s as ours). The rod starts straight up from the free end (on the table at the pattern's first point)
@@ -72,8 +73,12 @@ FLIP = np.diag([1.0, -1.0, -1.0])      # director rows (d1, d2, d3) = FLIP @ R_g
 
 @dataclass
 class ElasticaSettings:
-    element_length_m: float = 0.01    # PyElastica element length
-    dt_s: float = 3e-4                # position-Verlet step (explicit: below the axial wave's crossing time, 3.6e-4 s)
+    #: PyElastica element length; 1 cm until the study of the two simulators' disagreement (`sims_disagreement.md`):
+    #: unconverged there (nn's letter U 0.256 cm at 1 cm, 0.106 at 5 mm; our DER 0.081, converged)
+    element_length_m: float = 0.005
+    #: position-Verlet step (explicit: below the axial wave's crossing time dl / c, 1.8e-4 s for 5 mm elements of
+    #: rod #3, 1.6e-4 s for rod #2; ``replay_in_elastica`` refuses a step above it)
+    dt_s: float = 1.5e-4
     rotary_inertia_scale: float = 100.0   # the elements' rotary inertia times this (see rotary_inertia_scaled)
     damping_per_s: float = 2.0        # uniform viscous damping, as in our simulator
     contact_k_n_m: float = 200.0      # penalty stiffness of the table per element [N/m]
@@ -87,13 +92,19 @@ class ElasticaSettings:
     grid_s: float = 0.005             # the gripper's pose precomputed on this grid, linear in between
     friction_law: str = 'stick'       # NodalCoulombStickPlane; 'centreline' (CentrelineCoulombPlane: creeps),
     #                                   'pyelastica' (RodPlaneContactWithAnisotropicFriction: creeps and rolls)
+    #: the stick law's normal force N: True, the normal force the plane applies to the node (PyElastica's plane
+    #: response, penalty spring and damper, as distributed to the nodes); False (until the study of the two simulators'
+    #: disagreement): the plane response alone, on the elements within 0.1 mm of the plane, half to each node, which
+    #: at the lift-off point, where the suspended rod presses on the table, gave friction 20-65 % of our DER's normal
+    #: force (nn's letter U, `sims_disagreement.md`)
+    applied_normal: bool = True
 
 
 def rotary_inertia_scaled(rod_e, scale):
     """Scale the elements' rotary inertia (rho I, rho J) by ``scale``. Explicit steps of a Cosserat rod are bounded
     by the shear-rotation mode, omega = sqrt(G A / (rho I)) = 2 sqrt(G / rho) / h (16,000 rad/s for rod #3, dt <
     1.25e-4 s, whatever the element length); rotary inertia is negligible in a quasi-static deployment (rho I omega^2
-    against the weight), and scaling it by 100 leaves the axial wave's dl / c (3.6e-4 s for 1 cm elements of rod #3)
+    against the weight), and scaling it by 100 leaves the axial wave's dl / c (1.8e-4 s for 5 mm elements of rod #3)
     as the bound. Statics are unchanged."""
     rod_e.mass_second_moment_of_inertia *= scale
     rod_e.inv_mass_second_moment_of_inertia /= scale
@@ -159,23 +170,31 @@ class CentrelineCoulombPlane(ea.NoContact):
 
 
 @njit(cache=True)
-def _nodal_coulomb_stick(origin, normal, surface_tol, k, nu, mu, dt, radius, mass, position, velocity,
-                         internal_forces, external_forces):
+def _nodal_coulomb_stick(origin, normal, surface_tol, k, nu, mu, dt, applied_normal, radius, mass, position,
+                         velocity, internal_forces, external_forces):
     """PyElastica's rod-plane normal force, then Coulomb friction on the nodes' centreline velocity as a stick /
-    slip projection over the step: a node in contact (normal force N: half of each adjacent element's) gets the
+    slip projection over the step: a node in contact (normal force N: with ``applied_normal`` the normal force the
+    plane applies to the node, else half of each adjacent element's plane response) gets the
     tangential force that stops it within this step, -(F_t + m v_t / dt), when that is within mu N (sticking, the
     node then stays exactly still), else mu N against its trial velocity v_t + dt F_t / m (slipping). The
     position-Verlet velocity update v += dt (F + f) / m then gives v_t = 0 on a sticking node."""
+    n_before = normal[0] * external_forces[0] + normal[1] * external_forces[1] + normal[2] * external_forces[2]
     n_mag, no_contact = _calculate_contact_forces_rod_plane(origin, normal, surface_tol, k, nu, radius, mass,
                                                             position, velocity, internal_forces, external_forces)
     n_el = n_mag.shape[0]
-    in_contact = np.ones(n_el)
-    for j in no_contact:
-        in_contact[j] = 0.0
     n_node = np.zeros(n_el + 1)
-    for j in range(n_el):
-        n_node[j] += 0.5 * in_contact[j] * n_mag[j]
-        n_node[j + 1] += 0.5 * in_contact[j] * n_mag[j]
+    if applied_normal:
+        # the normal force the plane applies to each node (response, penalty spring and damper as distributed)
+        n_after = normal[0] * external_forces[0] + normal[1] * external_forces[1] + normal[2] * external_forces[2]
+        for i in range(n_el + 1):
+            n_node[i] = max(n_after[i] - n_before[i], 0.0)
+    else:
+        in_contact = np.ones(n_el)
+        for j in no_contact:
+            in_contact[j] = 0.0
+        for j in range(n_el):
+            n_node[j] += 0.5 * in_contact[j] * n_mag[j]
+            n_node[j + 1] += 0.5 * in_contact[j] * n_mag[j]
     for i in range(n_el + 1):
         if n_node[i] <= 0.0:
             continue
@@ -205,9 +224,10 @@ class NodalCoulombStickPlane(ea.NoContact):
     were changed together): not the tolerance but, as far as measured, the step's friction impulse sets it.
     Coulomb's law has no creep: the stick force here holds the node exactly, at any load up to mu N."""
 
-    def __init__(self, k, nu, mu, dt):
+    def __init__(self, k, nu, mu, dt, applied_normal=False):
         super().__init__()
         self.k, self.nu, self.mu, self.dt = np.float64(k), np.float64(nu), np.float64(mu), np.float64(dt)
+        self.applied_normal = bool(applied_normal)
         self.surface_tol = np.float64(1.0e-4)
 
     @property
@@ -216,7 +236,8 @@ class NodalCoulombStickPlane(ea.NoContact):
 
     def apply_contact(self, system_one, system_two, time=np.float64(0.0)):
         _nodal_coulomb_stick(system_two.origin, system_two.normal, self.surface_tol, self.k, self.nu, self.mu,
-                             self.dt, system_one.radius, system_one.mass, system_one.position_collection,
+                             self.dt, self.applied_normal, system_one.radius, system_one.mass,
+                             system_one.position_collection,
                              system_one.velocity_collection, system_one.internal_forces,
                              system_one.external_forces)
 
@@ -280,6 +301,11 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
     L, h = rod.length_m, rod.radius_m
     E, rho = rod_material(rod)
     n_el = max(int(round(L / s.element_length_m)), 4)
+    dt_bound = (L / n_el) / math.sqrt(E / rho)               # the axial wave's crossing time of one element
+    if s.dt_s >= dt_bound:
+        raise ValueError(f'PyElastica step {s.dt_s:g} s is not below the axial wave\'s crossing time of one element, '
+                         f'{dt_bound:.3g} s ({1e3 * L / n_el:.2f} mm elements): explicit steps would diverge; '
+                         f'give a smaller --dt')
     t_total = s.hang_settle_s + max(sc.t[-1] for sc in scheds) + s.settle_s
     grid_t = np.arange(0.0, t_total + 2 * s.grid_s, s.grid_s)
     sim = _Simulator()
@@ -314,7 +340,8 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
                 slip_velocity_tol=s.slip_velocity_tol_m_s)
         elif s.friction_law == 'stick':
             sim.detect_contact_between(rod_e, plane).using(
-                NodalCoulombStickPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction, dt=s.dt_s)
+                NodalCoulombStickPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction, dt=s.dt_s,
+                applied_normal=s.applied_normal)
         else:
             sim.detect_contact_between(rod_e, plane).using(
                 ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
@@ -451,6 +478,10 @@ def main():
                          "no creep); centreline: on the elements with PyElastica's slip-tolerance switch "
                          "(CentrelineCoulombPlane, creeps); pyelastica: PyElastica's anisotropic friction (creeps, "
                          'and rolls sideways)')
+    ap.add_argument('--response-normal', action='store_true',
+                    help="stick law: bound the friction by PyElastica's plane response alone (on the elements, half to "
+                         'each node; the default until the study of the disagreement) instead of the normal force the '
+                         'plane applies to the node')
     ap.add_argument('--traj-dir', metavar='DIR',
                     help='read each trajectory from DIR/traj_PATTERN_METHOD_rodK_FRICTION.csv (written by '
                          'deployment_table.py --save-traj; e.g. the method nn_refined) instead of planning it')
@@ -466,7 +497,7 @@ def main():
     args = ap.parse_args()
     settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
                                 slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale,
-                                friction_law=args.friction_law)
+                                friction_law=args.friction_law, applied_normal=not args.response_normal)
     t_all = time.perf_counter()
     checks = []
     if args.merge:
@@ -577,12 +608,17 @@ def _write(out, rows, checks, s, wall):
              + (f'with Coulomb friction on the centreline (`CentrelineCoulombPlane`: no rolling; static / kinetic '
                 f'switch at slip tolerance {s.slip_velocity_tol_m_s:g} m/s)' if s.friction_law == 'centreline' else
                 'with Coulomb friction on the nodes\' centreline velocity, stick / slip over the step '
-                '(`NodalCoulombStickPlane`: no rolling, no slip tolerance, a sticking node held still)'
+                '(`NodalCoulombStickPlane`: no rolling, no slip tolerance, a sticking node held still; friction '
+                + ('bounded by the normal force the plane applies to the node)' if s.applied_normal
+                   else "bounded by PyElastica's plane response on the elements, half to each node, "
+                        "`--response-normal`)")
                 if s.friction_law == 'stick' else
                 f'with PyElastica\'s friction (static / kinetic mu, slip tolerance {s.slip_velocity_tol_m_s:g} m/s, '
                 f'sideways on the rolling slip)') + f'; hanging {s.hang_settle_s:g} s first, gripper at 0.01 m/s, '
              f'{s.settle_s:g} s still at the end. Eq. 17, N = 50 (ours). "ours": our DER simulator\'s e_mean '
              f'from `deployment_table.md` in the same folder (or the tables given by --ours).', '',
+             'Command: `PYTHONPATH=ros_ws/src/rod_deploy .venv-bench/bin/python benchmarks/pyelastica_replay.py '
+             + ' '.join(sys.argv[1:]) + '`', '',
              '## Closed forms (`--validate`; the rod material of the table\'s rods)', '',
              '| rod | check | PyElastica mm | closed form mm | rel. error |', '|---|---|---|---|---|']
     for rod_id, name, got, want in checks:
@@ -590,7 +626,7 @@ def _write(out, rows, checks, s, wall):
     if not rows:
         out.write_text('\n'.join(lines) + '\n')
         return
-    lines = lines[:3] + ['', 'The closed-form checks of this set-up: `pyelastica_validation.md`.']
+    lines = lines[:5] + ['', 'The closed-form checks of this set-up: `pyelastica_validation.md`.']
     lines += ['', '## Deployments', '',
               '| rod | friction | pattern | planner | PyElastica e_mean cm | sigma cm | coverage | free end moved mm | '
               'ours e_mean cm | difference cm | wall s (batch / rods) | note |',
