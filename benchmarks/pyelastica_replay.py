@@ -500,11 +500,15 @@ def main():
                                 friction_law=args.friction_law, applied_normal=not args.response_normal)
     t_all = time.perf_counter()
     checks = []
-    if args.merge:
-        out = results_path(args, f'pyelastica_replay{args.tag}.md')
+    def our_tables(out):
         ours = {}
         for f in args.ours or [out.parent / 'deployment_table.md']:
             ours.update(read_our_table(Path(f)))
+        return ours
+
+    if args.merge:
+        out = results_path(args, f'pyelastica_replay{args.tag}.md')
+        ours = our_tables(out)
         rows = [r for f in args.merge for r in json.loads(Path(f).read_text())['rows']]
         pats = all_patterns()
         for r in rows:
@@ -528,7 +532,7 @@ def main():
         return
     patterns = all_patterns(args.patterns)
     out = results_path(args, f'pyelastica_replay{args.tag}.md')
-    ours = read_our_table(out.parent / 'deployment_table.md')
+    ours = our_tables(out)       # (--ours was read only with --merge: a run compared with deployment_table.md)
     rows = []
     for rod_id in (int(r) for r in args.rods.split(',')):
         rod = rod_description_from_dict(RODS[rod_id])
