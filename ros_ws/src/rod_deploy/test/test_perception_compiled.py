@@ -215,7 +215,7 @@ def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):
             continue
         t /= nt
         reach = trim + 2.0 * half_width_px + 4.0
-        for r in (reach, 2.0 * reach):          # a second search twice as far where the first finds nothing
+        for r in (reach, reach + 2.0 * half_width_px):    # one width further where the first finds nothing
             steps = np.arange(0.0, r + 1e-9, 0.25)
             ray = p[-1][None, :] + steps[:, None] * t[None, :]
             inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
