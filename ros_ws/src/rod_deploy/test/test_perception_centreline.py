@@ -43,3 +43,23 @@ def test_free_end_is_placed_at_the_rod_not_at_its_shadow_beyond():
                          0.5 * width, float(width)).points
         assert abs(out[-1, 1] - (tip_col - 0.5 * width)) < 1.0, (shadow, out[-1])
         assert abs(out[-1, 0] - 50.0) < 0.5
+
+
+def test_free_end_found_where_thinning_stopped_about_a_width_short_of_the_tip():
+    """Thinning can stop about a width inside a rod's free end, so that the first ray search (trimmed
+    stretch + 2 half widths + 4 px) ends just before the tip: the second, one width further, finds the
+    boundary and the end goes half a width inside it (it was left 8-13 px short)."""
+    import cv2
+
+    from rod_deploy.perception.centreline import RefinedPath, place_ends
+    for width in (9, 13):
+        tip_col = 150.0
+        evidence = np.zeros((100, 220), np.float32)
+        evidence[50 - width // 2:51 + width // 2, 20:int(tip_col)] = 200.0
+        evidence = cv2.GaussianBlur(evidence, (7, 7), 1.2)
+        short = tip_col - 0.5 * width - 1.2 * width          # the skeleton's end, a width inside the tip
+        pts = np.c_[np.full(81, 50.0), np.linspace(30.0, short, 81)]
+        out = place_ends(RefinedPath(pts, float(width), False, np.full(81, np.nan)), evidence, 10.0,
+                         0.5 * width, float(width)).points
+        assert abs(out[-1, 1] - (tip_col - 0.5 * width)) < 1.0, (width, out[-1])
+        assert abs(out[-1, 0] - 50.0) < 0.5

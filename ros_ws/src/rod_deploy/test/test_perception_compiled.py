@@ -214,14 +214,18 @@ def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):
         if nt < 1e-9:
             continue
         t /= nt
-        steps = np.arange(0.0, trim + 2.0 * half_width_px + 4.0 + 1e-9, 0.25)
-        ray = p[-1][None, :] + steps[:, None] * t[None, :]
-        inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
-        vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
-                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
-        peak = float(vals[:8].max())
-        below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
-        foot = (vals < max(0.35 * peak, floor)) & inside
+        reach = trim + 2.0 * half_width_px + 4.0
+        for r in (reach, reach + 2.0 * half_width_px):    # one width further where the first finds nothing
+            steps = np.arange(0.0, r + 1e-9, 0.25)
+            ray = p[-1][None, :] + steps[:, None] * t[None, :]
+            inside = (ray[:, 0] >= -0.5) & (ray[:, 0] <= h - 0.5) & (ray[:, 1] >= -0.5) & (ray[:, 1] <= w - 0.5)
+            vals = cv2.remap(evidence, ray[:, 1].astype(np.float32)[None], ray[:, 0].astype(np.float32)[None],
+                             cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0]
+            peak = float(vals[:8].max())
+            below = (vals < max(0.15 * peak, 0.5 * floor)) & inside
+            foot = (vals < max(0.35 * peak, floor)) & inside
+            if foot.any() or not inside.all():
+                break
         if foot.any():
             k35 = int(np.argmax(foot))
             if below.any() and int(np.argmax(below)) == 0:

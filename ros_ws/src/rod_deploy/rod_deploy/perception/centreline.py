@@ -566,7 +566,9 @@ def _median(values: np.ndarray):
 def place_ends(path: RefinedPath, evidence: np.ndarray, floor: float, half_width_px: float,
                tangent_px: float) -> RefinedPath:
     """Move each open end to half a width inside the boundary met along the end tangent (or to the image
-    border when the object runs off the image); extension along the tangent, trimming along the path."""
+    border when the object runs off the image); extension along the tangent, trimming along the path. The
+    boundary is searched within the trimmed stretch + 2 half widths + 4 px, and where not found there, within
+    one width more."""
     if path.closed or len(path.points) < 3:
         return path
     pts = path.points
@@ -587,10 +589,16 @@ def place_ends(path: RefinedPath, evidence: np.ndarray, floor: float, half_width
         if nt < 1e-9:
             continue
         t /= nt
+        # the boundary within reach; where there is none (thinning can stop about a width inside the tip, the
+        # foot then just past the reach), a second search one width further before the end is left as it was
+        # (a blob?)
         reach = trim + 2.0 * half_width_px + 4.0
-        found, target = _end_target(evidence, p[-1], t, np.arange(0.0, reach + 1e-9, 0.25), float(floor),
-                                    float(half_width_px))
-        if not found:               # no boundary within reach (a blob?): leave this end as it was
+        for r in (reach, reach + 2.0 * half_width_px):
+            found, target = _end_target(evidence, p[-1], t, np.arange(0.0, r + 1e-9, 0.25), float(floor),
+                                        float(half_width_px))
+            if found:
+                break
+        if not found:
             continue
         if target > 0.5:
             extra = np.arange(1.0, target + 1e-9, 1.0)
