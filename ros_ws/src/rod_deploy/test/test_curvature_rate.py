@@ -162,7 +162,11 @@ def test_levenberg_marquardt_reaches_the_minimum_scipy_reaches():
     def rosen_jac(x):
         return np.array([[-20.0 * x[0], 10.0], [-1.0, 0.0]])
 
-    np.testing.assert_allclose(levenberg_marquardt(rosen, rosen_jac, np.array([-1.2, 1.0])), [1.0, 1.0], atol=1e-8)
+    def normal(jac):
+        return lambda x, r: (jac(x).T @ jac(x), jac(x).T @ r)
+
+    np.testing.assert_allclose(levenberg_marquardt(rosen, normal(rosen_jac), np.array([-1.2, 1.0])), [1.0, 1.0],
+                               atol=1e-8)
 
     rng = np.random.default_rng(3)
     t = np.linspace(0.0, 4.0, 80)
@@ -176,7 +180,35 @@ def test_levenberg_marquardt_reaches_the_minimum_scipy_reaches():
         return np.column_stack([e * c, -t * p[0] * e * c, -t * p[0] * e * s, -p[0] * e * s])
 
     p0 = np.array([1.5, 0.5, 2.8, 0.0])
-    ours = levenberg_marquardt(fit, fit_jac, p0)
+    ours = levenberg_marquardt(fit, normal(fit_jac), p0)
     ref = least_squares(fit, p0, jac=fit_jac, method='trf', ftol=1e-14, xtol=1e-14, gtol=1e-14).x
     np.testing.assert_allclose(ours, ref, atol=1e-7)
     assert fit(ours) @ fit(ours) <= fit(ref) @ fit(ref) * (1 + 1e-12)
+
+
+def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypatch, rounded_zigzag):
+    """The closest curve forms J^T J and J^T r without stacking J (the penalty rows analytically): at the start and
+    at the solution of a plan with active rate and cap penalties they match a finite-difference Jacobian of its
+    residuals."""
+    from rod_deploy.planning import curvature_rate
+    seen = []
+    solve = curvature_rate.levenberg_marquardt
+
+    def spy(residuals, normal_equations, x0, **kw):
+        x = solve(residuals, normal_equations, x0, **kw)
+        seen.append((residuals, normal_equations, x0, x))
+        return x
+
+    monkeypatch.setattr(curvature_rate, 'levenberg_marquardt', spy)
+    plan_trajectory(rounded_zigzag, ROD, PlannerSettings())
+    residuals, normal_equations, x0, x1 = seen[0]
+    # at the start and near the solution (which sits on the rate limit's hinge, where no finite difference holds)
+    k = len(x0) - 1                                     # knots: rate (k - 1), cap (k), smoothing (k - 1) rows
+    for x in (x0, x1 + 1e-3 * np.random.default_rng(0).standard_normal(len(x1))):
+        r = residuals(x)
+        assert np.count_nonzero(r[-(3 * k - 2):-(k - 1)]) > 0                # penalties active
+        eps = 1e-7
+        J = np.column_stack([(residuals(x + eps * e) - residuals(x - eps * e)) / (2 * eps) for e in np.eye(len(x))])
+        A, g = normal_equations(x, residuals(x))
+        np.testing.assert_allclose(A, J.T @ J, rtol=1e-5, atol=1e-5 * np.abs(J.T @ J).max())
+        np.testing.assert_allclose(g, J.T @ r, rtol=1e-5, atol=1e-5 * np.abs(J.T @ r).max())

@@ -101,8 +101,16 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     D = np.diff(np.eye(n_knots), axis=0) / h_bar
     w_pen = 10.0 * np.sqrt(n)
 
+    # the penalty rows (rate and cap) are linear in the knots: their share of J^T J and J^T r is formed directly
+    # (D^T diag(w) D is tridiagonal) rather than by stacking their rows under the fit's
+    rate_weight2, pen2 = CLOSEST_RATE_WEIGHT ** 2, w_pen ** 2
+    dtheta_t, half_ds = np.ascontiguousarray(dtheta.T), 0.5 * ds / Lgb
+    last = {}                                           # the heading of the last curve integrated (x, theta)
+
     def curve(x):
-        return integrate_curvature(s, theta0 + x[0], hat @ x[1:] / Lgb, target[0])
+        xy, theta = integrate_curvature(s, theta0 + x[0], hat @ x[1:] / Lgb, target[0])
+        last['x'], last['theta'] = x.copy(), theta
+        return xy, theta
 
     def residuals(x):
         xy, _ = curve(x)
@@ -111,20 +119,32 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
         return np.concatenate([((xy - target) / Lgb).ravel(), w_pen * np.maximum(np.abs(rate) - max_rate, 0.0),
                                w_pen * np.maximum(np.abs(c) - cap_knots, 0.0), CLOSEST_RATE_WEIGHT * rate])
 
-    def jacobian(x):
-        _, theta = curve(x)
+    def normal_equations(x, r):
+        theta = last['theta'] if np.array_equal(last.get('x'), x) else curve(x)[1]
         c = x[1:]
         rate = D @ c
-        dx = _cumtrapz(-np.sin(theta)[:, None] * dtheta, ds) / Lgb
-        dy = _cumtrapz(np.cos(theta)[:, None] * dtheta, ds) / Lgb
-        zero = np.zeros((n_knots - 1, 1))
-        return np.vstack([np.stack([dx, dy], axis=1).reshape(2 * n, -1),
-                          np.hstack([zero, w_pen * ((np.abs(rate) > max_rate) * np.sign(rate))[:, None] * D]),
-                          np.hstack([np.zeros((n_knots, 1)), w_pen * np.diag((np.abs(c) > cap_knots) * np.sign(c))]),
-                          np.hstack([zero, CLOSEST_RATE_WEIGHT * D])])
+        # the fit's Jacobian transposed, (k + 1, 2, n - 1): d(x, y) / d(theta0, c) at the nodes after the first
+        # (the first is fixed), trapezoids cumulated along the contiguous last axis
+        f = dtheta_t[:, None, :] * np.stack([-np.sin(theta), np.cos(theta)])[None]
+        Gt = np.cumsum(half_ds * (f[:, :, 1:] + f[:, :, :-1]), axis=2).reshape(n_knots + 1, -1)
+        G = np.ascontiguousarray(Gt.T)          # (2 (n - 1), k + 1): OpenBLAS's threaded Gt @ Gt.T took 15 ms
+        A, g = G.T @ G, Gt @ r[2:2 * n].reshape(n - 1, 2).T.ravel()
+        w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2    # the rate rows: D^T diag(w) D
+        main = np.zeros(n_knots)
+        main[:-1] += w
+        main[1:] += w
+        main += pen2 * (np.abs(c) > cap_knots)                                # the cap rows: diagonal
+        k = np.arange(n_knots - 1)
+        Ac = A[1:, 1:]                                                        # a view: updates A
+        Ac[np.arange(n_knots), np.arange(n_knots)] += main
+        Ac[k, k + 1] -= w
+        Ac[k + 1, k] -= w
+        g[1:] += D.T @ (pen2 * np.sign(rate) * np.maximum(np.abs(rate) - max_rate, 0.0) + rate_weight2 * rate) \
+            + pen2 * np.sign(c) * np.maximum(np.abs(c) - cap_knots, 0.0)
+        return A, g
 
     x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb)])
-    x = levenberg_marquardt(residuals, jacobian, x0)
+    x = levenberg_marquardt(residuals, normal_equations, x0)
     kappa_bar = np.clip(hat @ x[1:], -cap_bar, cap_bar)
     kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
     xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, target[0])
@@ -132,13 +152,15 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
                             kappa=kappa_bar / Lgb)
 
 
-def levenberg_marquardt(residuals, jacobian, x0, ftol=1e-10, xtol=1e-10, max_iterations=1000):
+def levenberg_marquardt(residuals, normal_equations, x0, ftol=1e-10, xtol=1e-10, max_iterations=1000):
     """argmin |residuals(x)|^2 from ``x0``: Levenberg-Marquardt on the normal equations (Cholesky of J^T J plus
-    Marquardt's damping, scaled by the largest diagonal seen so far). For the closest curve's few hundred residuals
-    and about a hundred unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose SVD of J
-    per step took 90 % of the planning time (benchmarks/planning_speed.py), and it runs to the minimum (trf with
-    100 evaluations stopped short of it). Stops when a step lowers the cost by less than ``ftol``
-    of it, or changes x by less than ``xtol`` (relative), or after ``max_iterations`` Jacobians."""
+    Marquardt's damping, scaled by the largest diagonal seen so far). ``normal_equations(x, r)`` returns
+    (J^T J, J^T r) at x, r = residuals(x) (the last residuals evaluated were at x when the step was taken, so a
+    caller may reuse what it computed there). For the closest curve's few hundred residuals and about a hundred
+    unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose SVD of J per step took 90 % of
+    the planning time (benchmarks/planning_speed.py), and it runs to the minimum (trf with 100 evaluations stopped
+    short of it). Stops when a step lowers the cost by less than ``ftol`` of it, or changes x by less than ``xtol``
+    (relative), or after ``max_iterations`` Jacobians."""
     from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
     x = np.array(x0, float, copy=True)
@@ -147,17 +169,17 @@ def levenberg_marquardt(residuals, jacobian, x0, ftol=1e-10, xtol=1e-10, max_ite
     lam = 1e-3
     scale = np.zeros(len(x))
     for _ in range(max_iterations):
-        J = jacobian(x)
-        A, g = J.T @ J, J.T @ r
+        A, g = normal_equations(x, r)
         scale = np.maximum(scale, np.diag(A))
         safe = np.where(scale > 0, scale, 1.0)
         while lam < 1e16:
             try:
-                step = -cho_solve(cho_factor(A + lam * np.diag(safe)), g)
+                step = -cho_solve(cho_factor(A + lam * np.diag(safe), check_finite=False), g, check_finite=False)
             except LinAlgError:
                 lam *= 4.0
                 continue
-            r_new = residuals(x + step)
+            x_new = x + step
+            r_new = residuals(x_new)
             cost_new = float(r_new @ r_new)
             if cost_new < cost:
                 break
@@ -166,7 +188,7 @@ def levenberg_marquardt(residuals, jacobian, x0, ftol=1e-10, xtol=1e-10, max_ite
             return x
         small_gain = cost - cost_new <= ftol * cost
         small_step = np.linalg.norm(step) <= xtol * (xtol + np.linalg.norm(x))
-        x, r, cost = x + step, r_new, cost_new
+        x, r, cost = x_new, r_new, cost_new
         lam = max(lam / 3.0, 1e-12)
         if small_gain or small_step:
             break
