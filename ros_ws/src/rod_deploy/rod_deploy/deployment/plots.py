@@ -23,13 +23,13 @@ def plot_plan(path, plan, pattern_xy=None, predicted_xy=None, predicted_e_mean_c
                label='predicted deployment (our DER)' + (f', e_mean {predicted_e_mean_cm:.3f} cm'
                                                          if predicted_e_mean_cm is not None else ''))
     k = plan.first_grasp_index
-    replaced_m, dev_m = plan.start_replacement() if hasattr(plan, 'start_replacement') else (0.0, 0.0)
-    asked_m = plan.asked_deviation()[0] if hasattr(plan, 'asked_deviation') else 0.0
+    replaced_m, dev_m = plan.start_replacement()
+    asked_m = plan.asked_deviation()[0]
     if replaced_m > 0 or asked_m > 1e-3:   # the planned curve is not the pattern: draw both
         G = plan.pattern_as_given.xy
         a.plot(G[:, 0], G[:, 1], '-', color='0.55', lw=4, alpha=0.5, label='pattern (smoothed, resampled)')
         what = f'the first {100 * replaced_m:.0f} cm replaced (up to {1000 * dev_m:.0f} mm off), ' if replaced_m else ''
-        C = plan.asked_xy if getattr(plan, 'asked_xy', None) is not None else P     # the curve the grasps ask for
+        C = plan.asked_xy if plan.asked_xy is not None else P     # the curve the grasps ask for
         a.plot(C[:, 0], C[:, 1], 'k-', lw=1.5, label=f'planned curve: {what}up to {100 * asked_m:.1f} cm off')
     else:
         a.plot(P[:, 0], P[:, 1], 'k-', lw=2, label='pattern (smoothed, resampled)' if pattern_xy is None else

@@ -358,13 +358,16 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
             cap = np.maximum(np.abs(inputs[:, 2]),
                              friction_curvature_limit(pattern.s, Lgb, mu, settings.friction_share) * Lgb)
             kappa_bar = np.clip(kappa_bar, -cap, cap)
-        theta0 = np.arctan2(pattern.tangent[0, 1], pattern.tangent[0, 0])
-        asked_xy, _ = integrate_curvature(pattern.s, theta0, -kappa_bar / Lgb, pattern.xy[0])
+
+        def asked_curve(p, kb):     # the curve the grasps ask for: kappa_bar kb integrated from p's first node
+            return integrate_curvature(p.s, np.arctan2(p.tangent[0, 1], p.tangent[0, 0]), -kb / Lgb, p.xy[0])[0]
+        asked_xy = asked_curve(pattern, kappa_bar)
         if settings.planned_curve == 'closest' and np.isfinite(rate):
             from .curvature_rate import closest_rate_limited_curve
             cap = np.full(len(given.s), 0.9 * settings.max_abs_kappa_bar)
             if settings.start == 'achievable':
                 cap = np.minimum(cap, friction_curvature_limit(given.s, Lgb, mu, settings.friction_share) * Lgb)
+            theta0 = np.arctan2(pattern.tangent[0, 1], pattern.tangent[0, 0])
             closest = closest_rate_limited_curve(given, -kappa_bar / Lgb, theta0, Lgb, rate, cap)
             # kept only when nearer the pattern (mean distance over the nodes at equal arc length, Eq. 17's e_mean)
             # than the curve of the spread curvature: the fit's limits and smoothing can leave it further (letter C
@@ -375,8 +378,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
                 pattern = closest
                 inputs = node_inputs(pattern, rod, settings)
                 kappa_bar = inputs[:, 2]
-                asked_xy, _ = integrate_curvature(pattern.s, np.arctan2(pattern.tangent[0, 1], pattern.tangent[0, 0]),
-                                                  -kappa_bar / Lgb, pattern.xy[0])
+                asked_xy = asked_curve(pattern, kappa_bar)
         inputs[:, 2] = kappa_bar
     else:
         asked_xy = None
