@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import resource
 import subprocess
 import sys
 import tempfile
@@ -38,6 +39,7 @@ def main():
     rod = rod_description_from_dict({'length': 1.2, 'radius': 0.002, 'L_gb': 0.034})
     pts = spiral()
     rows = []
+    load_start = os.getloadavg()[0]
     default_start = PlannerSettings().start
     for method, start in (('nn', default_start), ('nn', 'tangent'), ('intuitive', default_start)):
         settings = PlannerSettings(method=method, start=start)
@@ -58,22 +60,25 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         np.savetxt(Path(d) / 'p.txt', pts)
         (Path(d) / 'rod.yaml').write_text('length: 1.2\nradius: 0.002\nL_gb: 0.034\n')
-        times = []
+        times, cpu = [], []
         for _ in range(max(3, args.repeats // 4)):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
             subprocess.run([str(Path(sys.executable).parent / 'rod-deploy'), 'plan', '--pattern', str(Path(d) / 'p.txt'),
                             '--rod', str(Path(d) / 'rod.yaml'), '--out', str(Path(d) / 't.csv')], check=True,
                            capture_output=True)
             times.append(time.perf_counter() - t0)
+            c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu.append(c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime)
         rows.append((f'whole `rod-deploy plan` process, nn, {default_start} start', len(plan.pattern.s),
-                     1000 * float(np.median(times)), None))
+                     1000 * float(np.median(times)), 1000 * float(np.median(cpu))))
     lines = ['# Planning speed (`python benchmarks/planning_speed.py`)', '',
-             f'Machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; '
+             f'Machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (at the end; '
+             f'{load_start:.1f} at the start), OPENBLAS_NUM_THREADS {os.environ.get("OPENBLAS_NUM_THREADS", "unset")}; '
              f'a 200-node spiral (5 mm steps, starting on a bend of radius 15 cm), rod L_gb 3.4 cm; the planner\'s '
              f'default start: {default_start}; medians of {args.repeats} runs (targets: 50 ms '
              'in-process with the network, 5 s for the whole process; the paper: about 0.4 s).', '',
-             'CPU ms: the process\'s CPU time (time.process_time, all threads), less sensitive to the load than the '
-             'wall clock.', '', '| what | nodes | median ms | median CPU ms |', '|---|---|---|---|'] + [
+             'CPU ms: the process\'s CPU time (time.process_time, all threads; for the whole process the child\'s user '
+             '+ system time), less sensitive to the load than the wall clock.', '', '| what | nodes | median ms | median CPU ms |', '|---|---|---|---|'] + [
         f'| {a} | {b} | {c:.1f} | {"" if d is None else f"{d:.1f}"} |' for a, b, c, d in rows]
     out = results_path(args, 'planning_speed.md')
     out.write_text('\n'.join(lines) + '\n')

@@ -203,6 +203,8 @@ def test_levenberg_marquardt_reaches_the_minimum_scipy_reaches():
     np.testing.assert_allclose(bounded, ref, atol=1e-7)
     assert stacked(bounded) @ stacked(bounded) <= stacked(ref) @ stacked(ref) * (1 + 1e-12)
     assert np.abs(levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b, w), ftol=1e-3) - ref).max() > 1e-7
+    with pytest.raises(ValueError, match='bounds'):
+        levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b[:3], w))
 
 
 def test_the_fit_rows_normal_equations_by_recurrence_are_the_dense_products():

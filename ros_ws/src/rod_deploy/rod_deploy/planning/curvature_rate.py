@@ -130,7 +130,8 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
         theta = last['theta'] if np.array_equal(last.get('x'), x) else curve(x)[1]
         A, g = fit_normal_equations(theta, dtheta, first, settled, half_ds, r[:2 * n].reshape(n, 2))
         rate = np.diff(x[knots]) / h_bar
-        w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2    # the rate rows: D^T diag(w) D
+        # the rate rows: D^T diag(w) D, D the knots' differences over h_bar
+        w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2
         main = np.zeros(n_knots)
         main[:-1] += w
         main[1:] += w
@@ -143,7 +144,8 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
         return A, g
 
     x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb)])
-    # ftol 1e-12: on a flat minimum (a cursive e, an outward spiral) 1e-10 leaves the plan 1e-5 m from the minimum's
+    # ftol 1e-13: on a flat minimum (a cursive e, an outward spiral) 1e-10 left the plan up to 1e-5 m, 1e-5 rad from
+    # the minimum's (benchmarks/results/planning_equivalence.md), for 2 % more Jacobians over its 64 fits
     x = levenberg_marquardt(residuals, normal_equations, x0, bounds=(bound, w_pen), ftol=1e-13)
     kappa_bar = np.clip(np.interp(s, s_knots, x[knots]), -cap_bar, cap_bar)
     kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
@@ -160,7 +162,7 @@ def levenberg_marquardt(residuals, normal_equations, x0, bounds=None, ftol=1e-10
     (inf: none) kept as penalty rows of weight w. They are piecewise linear in x, so each step minimises the
     Gauss-Newton model with them exactly (an active-set iteration on the step): a step that would cross a bound
     stops at it, where the model linearised at x overshoots it and is rejected (the closest curve's start, capped
-    knot after knot, took 71 Jacobians on the 200-node spiral that way, 7 now). For the closest curve's few hundred
+    knot after knot, took 71 Jacobians on the 200-node spiral that way, 9 now). For the closest curve's few hundred
     residuals and about a hundred unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose
     SVD of J per step took 90 % of the planning time (benchmarks/planning_speed.py), and it runs to the minimum
     (trf with 100 evaluations stopped short of it). Stops when the Gauss-Newton model at x (undamped) promises less
@@ -171,6 +173,9 @@ def levenberg_marquardt(residuals, normal_equations, x0, bounds=None, ftol=1e-10
 
     x = np.array(x0, float, copy=True)
     b, w = bounds if bounds is not None else (np.full(len(x), np.inf), 0.0)
+    b = np.asarray(b, float)
+    if b.shape != x.shape or np.any(b < 0) or not w >= 0:
+        raise ValueError(f'bounds: (b, w) with b of shape {x.shape}, b >= 0 and w >= 0, got {b.shape}, {w}')
     w2 = float(w) ** 2
 
     def objective(x):
