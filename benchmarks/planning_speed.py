@@ -2,6 +2,7 @@
 `rod-deploy plan` process (start-up included); medians.
 
     python benchmarks/planning_speed.py [--repeats 20] [--commit-results]
+    python benchmarks/planning_speed.py --profile [--commit-results]     # where the default plan's CPU time goes
 """
 from __future__ import annotations
 
@@ -31,13 +32,58 @@ def spiral(n=200, step=0.005):
     return np.column_stack([np.interp(u, s, xy[:, 0]), np.interp(u, s, xy[:, 1])])
 
 
+#: the parts of plan_trajectory the profile reports (file name, function name, what)
+PARTS = [('trajectory.py', 'process_pattern', 'smoothing spline and nodes (process_pattern)'),
+         ('achievable_start.py', 'achievable_start', 'friction-limited start (achievable_start, scipy trf)'),
+         ('curvature_rate.py', 'closest_rate_limited_curve', 'closest planned curve (closest_rate_limited_curve)'),
+         ('curvature_rate.py', 'levenberg_marquardt', '- its solver (levenberg_marquardt)'),
+         ('curvature_rate.py', 'normal_equations', '-- J^T J and J^T r (normal_equations)'),
+         ('curvature_rate.py', 'residuals', '-- residuals'),
+         ('_linalg.py', 'cholesky', '-- Cholesky (numpy)'),
+         ('_decomp_cholesky.py', 'cho_factor', '-- Cholesky (scipy cho_factor)'),
+         ('trajectory.py', 'grasps', 'grasps from the network (grasps)'),
+         ('neural_controller.py', 'load_grasp_network', '- reading the weights (load_grasp_network)'),
+         ('neural_controller.py', 'predict', '- forward pass (predict)')]
+
+
+def profile(args, pts, rod, n=20):
+    """Per-plan CPU time [ms] of the parts of the default plan (cProfile with the process's CPU clock)."""
+    import cProfile
+    import pstats
+    plan_trajectory(pts, rod, PlannerSettings())
+    pr = cProfile.Profile(time.process_time)
+    c0 = time.process_time()
+    pr.enable()
+    for _ in range(n):
+        plan_trajectory(pts, rod, PlannerSettings())
+    pr.disable()
+    total = time.process_time() - c0
+    stats = pstats.Stats(pr).stats
+    rows = []
+    for file, func, what in PARTS:
+        hits = [(v[1], v[3]) for (f, _, name), v in stats.items() if f.endswith(file) and name == func]
+        rows.append((what, sum(h[0] for h in hits) / n, 1000 * sum(h[1] for h in hits) / n))
+    lines = ['# Where the default plan\'s CPU time goes (`python benchmarks/planning_speed.py --profile`)', '',
+             f'The 200-node spiral of planning_speed.md, the default settings; cProfile with the process\'s CPU clock '
+             f'(all threads) over {n} plans, per plan (profiling adds its own overhead); load average '
+             f'{os.getloadavg()[0]:.1f}, OPENBLAS_NUM_THREADS {os.environ.get("OPENBLAS_NUM_THREADS", "unset")}. '
+             f'Total {1000 * total / n:.1f} ms CPU per plan.', '', '| part | calls per plan | CPU ms per plan |',
+             '|---|---|---|'] + [f'| {a} | {b:.1f} | {c:.1f} |' for a, b, c in rows]
+    out = results_path(args, 'planning_speed_profile.md')
+    out.write_text('\n'.join(lines) + '\n')
+    print('\n'.join(lines))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--repeats', type=int, default=20)
+    ap.add_argument('--profile', action='store_true', help='where the default plan\'s CPU time goes, instead')
     add_results_argument(ap)
     args = ap.parse_args()
     rod = rod_description_from_dict({'length': 1.2, 'radius': 0.002, 'L_gb': 0.034})
     pts = spiral()
+    if args.profile:
+        return profile(args, pts, rod)
     rows = []
     load_start = os.getloadavg()[0]
     default_start = PlannerSettings().start
