@@ -12,7 +12,7 @@ The network is a small MLP trained by ``scripts/train_grasp_network.py`` on the 
 Signed curvature: the network sees |kappa_bar|; for kappa_bar < 0 the grasp is mirrored in the x-z plane
 (y -> -y, and the rotation R -> M R M with M = diag(1, -1, 1), i.e. rotvec (rx, ry, rz) -> (-rx, ry, -rz)), as the
 released code does. Inputs outside the trained range raise :class:`OutOfTrainedRange`: never extrapolated.
-Inference is a forward pass of dense layers compiled with numba (a 200-node pattern: 0.9 ms; torch is not imported):
+Inference is a forward pass of dense layers compiled with numba (a 200-node pattern: about 1 ms; torch is not imported):
 numpy's matrix product hands a 200 x 128 x 128 product to OpenBLAS's threads, which on a loaded 2-core machine took
 20 ms of wall clock and 8 ms of CPU per layer, their spinning afterwards doubling the CPU time of the whole plan
 (benchmarks/results/planning_speed.md); a single-threaded BLAS does it in 0.15 ms. The loaded weights are kept per
