@@ -2,12 +2,14 @@
 `rod-deploy plan` process (start-up included); medians.
 
     python benchmarks/planning_speed.py [--repeats 20] [--commit-results]
+    python benchmarks/planning_speed.py --profile [--commit-results]     # where the default plan's CPU time goes
 """
 from __future__ import annotations
 
 import argparse
 import os
 import platform
+import resource
 import subprocess
 import sys
 import tempfile
@@ -30,14 +32,60 @@ def spiral(n=200, step=0.005):
     return np.column_stack([np.interp(u, s, xy[:, 0]), np.interp(u, s, xy[:, 1])])
 
 
+#: the parts of plan_trajectory the profile reports (file name, function name, what)
+PARTS = [('trajectory.py', 'process_pattern', 'smoothing spline and nodes (process_pattern)'),
+         ('achievable_start.py', 'achievable_start', 'friction-limited start (achievable_start, scipy trf)'),
+         ('curvature_rate.py', 'closest_rate_limited_curve', 'closest planned curve (closest_rate_limited_curve)'),
+         ('curvature_rate.py', 'levenberg_marquardt', '- its solver (levenberg_marquardt)'),
+         ('curvature_rate.py', 'normal_equations', '-- J^T J and J^T r (normal_equations)'),
+         ('curvature_rate.py', 'residuals', '-- residuals'),
+         ('_linalg.py', 'cholesky', '-- Cholesky (numpy)'),
+         ('_decomp_cholesky.py', 'cho_factor', '-- Cholesky (scipy cho_factor)'),
+         ('trajectory.py', 'grasps', 'grasps from the network (grasps)'),
+         ('neural_controller.py', 'load_grasp_network', '- reading the weights (load_grasp_network)'),
+         ('neural_controller.py', 'predict', '- forward pass (predict)')]
+
+
+def profile(args, pts, rod, n=20):
+    """Per-plan CPU time [ms] of the parts of the default plan (cProfile with the process's CPU clock)."""
+    import cProfile
+    import pstats
+    plan_trajectory(pts, rod, PlannerSettings())
+    pr = cProfile.Profile(time.process_time)
+    c0 = time.process_time()
+    pr.enable()
+    for _ in range(n):
+        plan_trajectory(pts, rod, PlannerSettings())
+    pr.disable()
+    total = time.process_time() - c0
+    stats = pstats.Stats(pr).stats
+    rows = []
+    for file, func, what in PARTS:
+        hits = [(v[1], v[3]) for (f, _, name), v in stats.items() if f.endswith(file) and name == func]
+        rows.append((what, sum(h[0] for h in hits) / n, 1000 * sum(h[1] for h in hits) / n))
+    lines = ['# Where the default plan\'s CPU time goes (`python benchmarks/planning_speed.py --profile`)', '',
+             f'The 200-node spiral of planning_speed.md, the default settings; cProfile with the process\'s CPU clock '
+             f'(all threads) over {n} plans, per plan (profiling adds its own overhead); load average '
+             f'{os.getloadavg()[0]:.1f}, OPENBLAS_NUM_THREADS {os.environ.get("OPENBLAS_NUM_THREADS", "unset")}. '
+             f'Total {1000 * total / n:.1f} ms CPU per plan.', '', '| part | calls per plan | CPU ms per plan |',
+             '|---|---|---|'] + [f'| {a} | {b:.1f} | {c:.1f} |' for a, b, c in rows]
+    out = results_path(args, 'planning_speed_profile.md')
+    out.write_text('\n'.join(lines) + '\n')
+    print('\n'.join(lines))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--repeats', type=int, default=20)
+    ap.add_argument('--profile', action='store_true', help='where the default plan\'s CPU time goes, instead')
     add_results_argument(ap)
     args = ap.parse_args()
     rod = rod_description_from_dict({'length': 1.2, 'radius': 0.002, 'L_gb': 0.034})
     pts = spiral()
+    if args.profile:
+        return profile(args, pts, rod)
     rows = []
+    load_start = os.getloadavg()[0]
     default_start = PlannerSettings().start
     for method, start in (('nn', default_start), ('nn', 'tangent'), ('intuitive', default_start)):
         settings = PlannerSettings(method=method, start=start)
@@ -58,22 +106,25 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         np.savetxt(Path(d) / 'p.txt', pts)
         (Path(d) / 'rod.yaml').write_text('length: 1.2\nradius: 0.002\nL_gb: 0.034\n')
-        times = []
+        times, cpu = [], []
         for _ in range(max(3, args.repeats // 4)):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
             subprocess.run([str(Path(sys.executable).parent / 'rod-deploy'), 'plan', '--pattern', str(Path(d) / 'p.txt'),
                             '--rod', str(Path(d) / 'rod.yaml'), '--out', str(Path(d) / 't.csv')], check=True,
                            capture_output=True)
             times.append(time.perf_counter() - t0)
+            c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu.append(c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime)
         rows.append((f'whole `rod-deploy plan` process, nn, {default_start} start', len(plan.pattern.s),
-                     1000 * float(np.median(times)), None))
+                     1000 * float(np.median(times)), 1000 * float(np.median(cpu))))
     lines = ['# Planning speed (`python benchmarks/planning_speed.py`)', '',
-             f'Machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; '
+             f'Machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (at the end; '
+             f'{load_start:.1f} at the start), OPENBLAS_NUM_THREADS {os.environ.get("OPENBLAS_NUM_THREADS", "unset")}; '
              f'a 200-node spiral (5 mm steps, starting on a bend of radius 15 cm), rod L_gb 3.4 cm; the planner\'s '
              f'default start: {default_start}; medians of {args.repeats} runs (targets: 50 ms '
              'in-process with the network, 5 s for the whole process; the paper: about 0.4 s).', '',
-             'CPU ms: the process\'s CPU time (time.process_time, all threads), less sensitive to the load than the '
-             'wall clock.', '', '| what | nodes | median ms | median CPU ms |', '|---|---|---|---|'] + [
+             'CPU ms: the process\'s CPU time (time.process_time, all threads; for the whole process the child\'s user '
+             '+ system time), less sensitive to the load than the wall clock.', '', '| what | nodes | median ms | median CPU ms |', '|---|---|---|---|'] + [
         f'| {a} | {b} | {c:.1f} | {"" if d is None else f"{d:.1f}"} |' for a, b, c, d in rows]
     out = results_path(args, 'planning_speed.md')
     out.write_text('\n'.join(lines) + '\n')

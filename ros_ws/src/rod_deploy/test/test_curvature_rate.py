@@ -184,6 +184,54 @@ def test_levenberg_marquardt_reaches_the_minimum_scipy_reaches():
     ref = least_squares(fit, p0, jac=fit_jac, method='trf', ftol=1e-14, xtol=1e-14, gtol=1e-14).x
     np.testing.assert_allclose(ours, ref, atol=1e-7)
     assert fit(ours) @ fit(ours) <= fit(ref) @ fit(ref) * (1 + 1e-12)
+    # the tolerance matters: stopped at a loose one it is not there
+    assert np.abs(levenberg_marquardt(fit, normal(fit_jac), p0, ftol=1e-3) - ref).max() > 1e-7
+
+    # with bounds |x_i| <= b_i kept as penalty rows w max(|x_i| - b_i, 0) (the amplitude held below its fit's 2):
+    # the minimum of the residuals stacked with those rows, to which scipy runs from the same start
+    b, w = np.array([1.6, np.inf, np.inf, 0.3]), 30.0
+
+    def stacked(p):
+        return np.concatenate([fit(p), w * np.maximum(np.abs(p) - b, 0.0)])
+
+    def stacked_jac(p):
+        return np.vstack([fit_jac(p), np.diag(w * (np.abs(p) > b) * np.sign(p))])
+
+    bounded = levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b, w))
+    ref = least_squares(stacked, p0, jac=stacked_jac, method='trf', ftol=1e-15, xtol=1e-15, gtol=1e-15).x
+    assert abs(ref[0]) > b[0] and abs(ref[3]) > b[3]                        # both penalties active there
+    np.testing.assert_allclose(bounded, ref, atol=1e-7)
+    assert stacked(bounded) @ stacked(bounded) <= stacked(ref) @ stacked(ref) * (1 + 1e-12)
+    assert np.abs(levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b, w), ftol=1e-3) - ref).max() > 1e-7
+    with pytest.raises(ValueError, match='bounds'):
+        levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b[:3], w))
+
+
+def test_the_fit_rows_normal_equations_by_recurrence_are_the_dense_products():
+    """closest_curve_kernel forms J^T J and J^T r of the curve's points from d theta / d x without the dense
+    (2 m, p) Jacobian: equal to the dense products to rounding, for columns that settle (a heading offset, knots of
+    a piecewise linear curvature) and for one that never does."""
+    from rod_deploy.planning.achievable_start import _cumtrapz
+    from rod_deploy.planning.closest_curve_kernel import column_support, fit_normal_equations
+    rng = np.random.default_rng(1)
+    m = 90
+    s = np.cumsum(np.r_[0.0, rng.uniform(0.5, 1.5, m - 1)]) * 0.004            # uneven steps
+    theta = np.cumsum(rng.normal(0.0, 0.2, m))
+    s_knots = np.linspace(0.0, s[-1], 14)
+    hat = np.clip(1.0 - np.abs(s[:, None] - s_knots[None, :]) / (s_knots[1] - s_knots[0]), 0.0, None)
+    ds = np.diff(s)
+    dtheta = np.column_stack([np.ones(m), _cumtrapz(hat, ds) / LGB, np.sin(s / 0.05)])
+    first, settled = column_support(dtheta)
+    assert first[0] == 0 and settled[0] == 0 and settled[-1] == m - 1          # constant; never settles
+    assert np.all(settled[1:-1] - first[1:-1] <= 16)       # the knots: their support, two spacings of 6.5 nodes
+    half_ds = 0.5 * ds / LGB
+    r = rng.normal(size=(m, 2))
+    f = dtheta[:, :, None] * np.column_stack([-np.sin(theta), np.cos(theta)])[:, None, :]     # (m, p, 2)
+    G = np.concatenate([np.zeros((1,) + f.shape[1:]), np.cumsum(half_ds[:, None, None] * (f[1:] + f[:-1]), axis=0)])
+    J = G[1:].transpose(0, 2, 1).reshape(2 * (m - 1), -1)                    # rows (x_i, y_i), i >= 1
+    A, g = fit_normal_equations(theta, dtheta, first, settled, half_ds, r)
+    np.testing.assert_allclose(A, J.T @ J, rtol=1e-12, atol=1e-12 * np.abs(J.T @ J).max())
+    np.testing.assert_allclose(g, J.T @ r[1:].ravel(), rtol=1e-12, atol=1e-12 * np.abs(g).max())
 
 
 def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypatch, rounded_zigzag):
@@ -196,17 +244,20 @@ def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypa
 
     def spy(residuals, normal_equations, x0, **kw):
         x = solve(residuals, normal_equations, x0, **kw)
-        seen.append((residuals, normal_equations, x0, x))
+        seen.append((residuals, normal_equations, x0, x, kw))
         return x
 
     monkeypatch.setattr(curvature_rate, 'levenberg_marquardt', spy)
     plan_trajectory(rounded_zigzag, ROD, PlannerSettings())
-    residuals, normal_equations, x0, x1 = seen[0]
+    residuals, normal_equations, x0, x1, kw = seen[0]
     # at the start and near the solution (which sits on the rate limit's hinge, where no finite difference holds)
-    k = len(x0) - 1                                     # knots: rate (k - 1), cap (k), smoothing (k - 1) rows
+    k = len(x0) - 1                                     # knots: rate (k - 1) and smoothing (k - 1) rows after the fit
+    bound, _ = kw['bounds']                             # the cap on the knots: the solver's bounds
+    assert np.any(np.abs(x1) > bound)                   # active at the solution (a penalty)
     for x in (x0, x1 + 1e-3 * np.random.default_rng(0).standard_normal(len(x1))):
         r = residuals(x)
-        assert np.count_nonzero(r[-(3 * k - 2):-(k - 1)]) > 0                # penalties active
+        n2 = len(r) - 2 * (k - 1)
+        assert np.count_nonzero(r[n2:n2 + k - 1]) > 0                       # rate penalties active
         eps = 1e-7
         J = np.column_stack([(residuals(x + eps * e) - residuals(x - eps * e)) / (2 * eps) for e in np.eye(len(x))])
         A, g = normal_equations(x, residuals(x))

@@ -86,6 +86,7 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     started from ``kappa0`` (m,) [1/m] and ``theta0`` [rad] (the spread curvature and the start heading); the limits
     are penalties, then enforced exactly (``limit_curvature_rate``, a clip) and the curve integrated once more."""
     from .achievable_start import _cumtrapz, integrate_curvature
+    from .closest_curve_kernel import column_support, fit_normal_equations
     from .trajectory import ProcessedPattern
 
     Lgb = gravito_bending_length_m
@@ -98,89 +99,132 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     cap_knots = np.interp(s_knots, s, cap_bar)
     ds = np.diff(s)
     dtheta = np.column_stack([np.ones(n), _cumtrapz(hat, ds) / Lgb])                  # d theta / d(theta0, c)
-    D = np.diff(np.eye(n_knots), axis=0) / h_bar
     w_pen = 10.0 * np.sqrt(n)
 
-    # the penalty rows (rate and cap) are linear in the knots: their share of J^T J and J^T r is formed directly
-    # (D^T diag(w) D is tridiagonal) rather than by stacking their rows under the fit's
+    # the fit rows' J^T J and J^T r by a recurrence (closest_curve_kernel); the rate rows are linear in the knots:
+    # their share is formed directly (D^T diag(w) D is tridiagonal) rather than by stacking their rows; the cap is a
+    # bound on each knot, handed to the solver as such. No BLAS call in the loop: OpenBLAS's threads, woken by a
+    # product above its size threshold, spin on the second core after it (the CPU time doubled at load 2.5)
+    first, settled = column_support(dtheta)
+    half_ds = 0.5 * ds / Lgb
+    knots = slice(1, 1 + n_knots)                       # the knots' place in the unknowns (theta0 first)
     rate_weight2, pen2 = CLOSEST_RATE_WEIGHT ** 2, w_pen ** 2
-    dtheta_t, half_ds = np.ascontiguousarray(dtheta.T), 0.5 * ds / Lgb
+    bound = np.full(1 + n_knots, np.inf)
+    bound[knots] = cap_knots
+    diagonal, upper = np.arange(n_knots), np.arange(n_knots - 1)
     last = {}                                           # the heading of the last curve integrated (x, theta)
 
     def curve(x):
-        xy, theta = integrate_curvature(s, theta0 + x[0], hat @ x[1:] / Lgb, target[0])
+        # the piecewise linear curvature between the knots (the hat functions' sum)
+        xy, theta = integrate_curvature(s, theta0 + x[0], np.interp(s, s_knots, x[knots]) / Lgb, target[0])
         last['x'], last['theta'] = x.copy(), theta
         return xy, theta
 
     def residuals(x):
         xy, _ = curve(x)
-        c = x[1:]
-        rate = D @ c
+        rate = np.diff(x[knots]) / h_bar
         return np.concatenate([((xy - target) / Lgb).ravel(), w_pen * np.maximum(np.abs(rate) - max_rate, 0.0),
-                               w_pen * np.maximum(np.abs(c) - cap_knots, 0.0), CLOSEST_RATE_WEIGHT * rate])
+                               CLOSEST_RATE_WEIGHT * rate])
 
     def normal_equations(x, r):
         theta = last['theta'] if np.array_equal(last.get('x'), x) else curve(x)[1]
-        c = x[1:]
-        rate = D @ c
-        # the fit's Jacobian transposed, (k + 1, 2, n - 1): d(x, y) / d(theta0, c) at the nodes after the first
-        # (the first is fixed), trapezoids cumulated along the contiguous last axis
-        f = dtheta_t[:, None, :] * np.stack([-np.sin(theta), np.cos(theta)])[None]
-        Gt = np.cumsum(half_ds * (f[:, :, 1:] + f[:, :, :-1]), axis=2).reshape(n_knots + 1, -1)
-        G = np.ascontiguousarray(Gt.T)          # (2 (n - 1), k + 1): OpenBLAS's threaded Gt @ Gt.T took 15 ms
-        A, g = G.T @ G, Gt @ r[2:2 * n].reshape(n - 1, 2).T.ravel()
-        w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2    # the rate rows: D^T diag(w) D
+        A, g = fit_normal_equations(theta, dtheta, first, settled, half_ds, r[:2 * n].reshape(n, 2))
+        rate = np.diff(x[knots]) / h_bar
+        # the rate rows: D^T diag(w) D, D the knots' differences over h_bar
+        w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2
         main = np.zeros(n_knots)
         main[:-1] += w
         main[1:] += w
-        main += pen2 * (np.abs(c) > cap_knots)                                # the cap rows: diagonal
-        k = np.arange(n_knots - 1)
-        Ac = A[1:, 1:]                                                        # a view: updates A
-        Ac[np.arange(n_knots), np.arange(n_knots)] += main
-        Ac[k, k + 1] -= w
-        Ac[k + 1, k] -= w
-        g[1:] += D.T @ (pen2 * np.sign(rate) * np.maximum(np.abs(rate) - max_rate, 0.0) + rate_weight2 * rate) \
-            + pen2 * np.sign(c) * np.maximum(np.abs(c) - cap_knots, 0.0)
+        Ac = A[knots, knots]                                                  # a view: updates A
+        Ac[diagonal, diagonal] += main
+        Ac[upper, upper + 1] -= w
+        Ac[upper + 1, upper] -= w
+        v = pen2 * np.sign(rate) * np.maximum(np.abs(rate) - max_rate, 0.0) + rate_weight2 * rate
+        g[knots] += (np.r_[0.0, v] - np.r_[v, 0.0]) / h_bar                 # D^T v
         return A, g
 
     x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb)])
-    x = levenberg_marquardt(residuals, normal_equations, x0)
-    kappa_bar = np.clip(hat @ x[1:], -cap_bar, cap_bar)
+    # ftol 1e-13: on a flat minimum (a cursive e, an outward spiral) 1e-10 left the plan up to 1e-5 m, 1e-5 rad from
+    # the minimum's (benchmarks/results/planning_equivalence.md), for 2 % more Jacobians over its 64 fits
+    x = levenberg_marquardt(residuals, normal_equations, x0, bounds=(bound, w_pen), ftol=1e-13)
+    kappa_bar = np.clip(np.interp(s, s_knots, x[knots]), -cap_bar, cap_bar)
     kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
     xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, target[0])
     return ProcessedPattern(s=s.copy(), xy=xy, tangent=np.column_stack([np.cos(theta), np.sin(theta)]),
                             kappa=kappa_bar / Lgb)
 
 
-def levenberg_marquardt(residuals, normal_equations, x0, ftol=1e-10, xtol=1e-10, max_iterations=1000):
-    """argmin |residuals(x)|^2 from ``x0``: Levenberg-Marquardt on the normal equations (Cholesky of J^T J plus
-    Marquardt's damping, scaled by the largest diagonal seen so far). ``normal_equations(x, r)`` returns
-    (J^T J, J^T r) at x, r = residuals(x) (the last residuals evaluated were at x when the step was taken, so a
-    caller may reuse what it computed there). For the closest curve's few hundred residuals and about a hundred
-    unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose SVD of J per step took 90 % of
-    the planning time (benchmarks/planning_speed.py), and it runs to the minimum (trf with 100 evaluations stopped
-    short of it). Stops when a step lowers the cost by less than ``ftol`` of it, or changes x by less than ``xtol``
-    (relative), or after ``max_iterations`` Jacobians."""
-    from scipy.linalg import LinAlgError, cho_factor, cho_solve
+def levenberg_marquardt(residuals, normal_equations, x0, bounds=None, ftol=1e-10, xtol=1e-10, max_iterations=1000):
+    """argmin |residuals(x)|^2 + |w max(|x| - b, 0)|^2 from ``x0``: Levenberg-Marquardt on the normal equations
+    (Cholesky of J^T J plus Marquardt's damping, scaled by the largest diagonal seen so far). ``normal_equations(x,
+    r)`` returns (J^T J, J^T r) at x, r = residuals(x) (the last residuals evaluated were at x when the step was
+    taken, so a caller may reuse what it computed there). ``bounds``: None or (b (p,), w), limits |x_i| <= b_i
+    (inf: none) kept as penalty rows of weight w. They are piecewise linear in x, so each step minimises the
+    Gauss-Newton model with them exactly (an active-set iteration on the step): a step that would cross a bound
+    stops at it, where the model linearised at x overshoots it and is rejected (the closest curve's start, capped
+    knot after knot, took 71 Jacobians on the 200-node spiral that way, 9 now). For the closest curve's few hundred
+    residuals and about a hundred unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose
+    SVD of J per step took 90 % of the planning time (benchmarks/planning_speed.py), and it runs to the minimum
+    (trf with 100 evaluations stopped short of it). Stops when the Gauss-Newton model at x (undamped) promises less
+    than ``ftol`` of the cost, checked after a step that gained less than that (a heavily damped step gains little
+    far from the minimum too: stopping there left the cost 2e-6 above the minimum on some plans), or when a step
+    changes x by less than ``xtol`` (relative), or after ``max_iterations`` Jacobians."""
+    from scipy.linalg import cho_solve
 
     x = np.array(x0, float, copy=True)
-    r = residuals(x)
-    cost = float(r @ r)
+    b, w = bounds if bounds is not None else (np.full(len(x), np.inf), 0.0)
+    b = np.asarray(b, float)
+    if b.shape != x.shape or np.any(b < 0) or not w >= 0:
+        raise ValueError(f'bounds: (b, w) with b of shape {x.shape}, b >= 0 and w >= 0, got {b.shape}, {w}')
+    w2 = float(w) ** 2
+
+    def objective(x):
+        r = residuals(x)
+        over = np.maximum(np.abs(x) - b, 0.0)
+        return r, float(r @ r) + w2 * float(over @ over)
+
+    def step_to(x, A, g, damping):
+        """The step s minimising |r + J s|^2 + s^T diag(damping) s + the bound rows at x + s."""
+        active, sign = np.abs(x) > b, np.sign(x)
+        for _ in range(len(x) + 1):
+            L = np.linalg.cholesky(A + np.diag(damping + w2 * active))
+            step = -cho_solve((L, True), g + w2 * active * (x - sign * np.where(active, b, 0.0)),
+                               check_finite=False)
+            now = np.abs(x + step) > b
+            if np.array_equal(now, active) and np.array_equal(np.sign(x + step)[now], sign[now]):
+                break
+            active, sign = now, np.sign(x + step)
+        return step
+
+    def gauss_newton_gain(x, r, cost, A, g, safe):
+        """The decrease of the cost that the model at x promises for its own (barely damped) step."""
+        try:
+            step = step_to(x, A, g, 1e-12 * safe)
+        except np.linalg.LinAlgError:
+            return np.inf
+        over = np.maximum(np.abs(x + step) - b, 0.0)
+        model = float(r @ r) + 2.0 * float(g @ step) + float(np.einsum('i,ij,j->', step, A, step)) \
+            + w2 * float(over @ over)
+        return cost - model
+
+    r, cost = objective(x)
     lam = 1e-3
     scale = np.zeros(len(x))
+    small_gain = False
     for _ in range(max_iterations):
         A, g = normal_equations(x, r)
-        scale = np.maximum(scale, np.diag(A))
+        scale = np.maximum(scale, np.diag(A) + w2 * (np.abs(x) > b))     # the bound rows active at x count too
         safe = np.where(scale > 0, scale, 1.0)
+        if small_gain and gauss_newton_gain(x, r, cost, A, g, safe) <= ftol * cost:
+            break
         while lam < 1e16:
             try:
-                step = -cho_solve(cho_factor(A + lam * np.diag(safe), check_finite=False), g, check_finite=False)
-            except LinAlgError:
+                step = step_to(x, A, g, lam * safe)
+            except np.linalg.LinAlgError:
                 lam *= 4.0
                 continue
             x_new = x + step
-            r_new = residuals(x_new)
-            cost_new = float(r_new @ r_new)
+            r_new, cost_new = objective(x_new)
             if cost_new < cost:
                 break
             lam *= 4.0
@@ -190,6 +234,6 @@ def levenberg_marquardt(residuals, normal_equations, x0, ftol=1e-10, xtol=1e-10,
         small_step = np.linalg.norm(step) <= xtol * (xtol + np.linalg.norm(x))
         x, r, cost = x_new, r_new, cost_new
         lam = max(lam / 3.0, 1e-12)
-        if small_gain or small_step:
+        if small_step:
             break
     return x

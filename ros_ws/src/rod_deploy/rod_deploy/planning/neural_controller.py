@@ -12,14 +12,20 @@ The network is a small MLP trained by ``scripts/train_grasp_network.py`` on the 
 Signed curvature: the network sees |kappa_bar|; for kappa_bar < 0 the grasp is mirrored in the x-z plane
 (y -> -y, and the rotation R -> M R M with M = diag(1, -1, 1), i.e. rotvec (rx, ry, rz) -> (-rx, ry, -rz)), as the
 released code does. Inputs outside the trained range raise :class:`OutOfTrainedRange`: never extrapolated.
-Inference is a plain numpy forward pass (a 200-node pattern takes well under a millisecond; torch is not imported).
+Inference is a forward pass of dense layers compiled with numba (a 200-node pattern: about 1 ms; torch is not imported):
+numpy's matrix product hands a 200 x 128 x 128 product to OpenBLAS's threads, which on a loaded 2-core machine took
+20 ms of wall clock and 8 ms of CPU per layer, their spinning afterwards doubling the CPU time of the whole plan
+(benchmarks/results/planning_speed.md); a single-threaded BLAS does it in 0.15 ms. The loaded weights are kept per
+file (path, size and modification time), so that planning does not read them each time.
 """
 from __future__ import annotations
 
 import json
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[1] / 'data' / 'grasp_network.npz'
 
@@ -56,6 +62,7 @@ class GraspPredictor:
     def __init__(self, weights: list, biases: list, input_mean, input_std, output_mean, output_std,
                  trained_range: dict, record: dict | None = None):
         self.weights = [np.asarray(w, float) for w in weights]
+        self._weights_t = [np.ascontiguousarray(w.T) for w in self.weights]
         self.biases = [np.asarray(b, float) for b in biases]
         self.input_mean, self.input_std = np.asarray(input_mean, float), np.asarray(input_std, float)
         self.output_mean, self.output_std = np.asarray(output_mean, float), np.asarray(output_std, float)
@@ -78,10 +85,11 @@ class GraspPredictor:
                                                           for v in (ls_bar, ks_bar, kappa_bar)))
         self.check_range(ls_bar, ks_bar, kappa_bar)
         h = (features(ls_bar, ks_bar, kappa_bar) - self.input_mean) / self.input_std
-        for w, b in zip(self.weights[:-1], self.biases[:-1]):
-            h = h @ w.T + b
+        h = np.ascontiguousarray(h)
+        for w_t, b in zip(self._weights_t[:-1], self.biases[:-1]):
+            h = dense_layer(h, w_t, b)
             h = h / (1.0 + np.exp(-h))                       # SiLU
-        out = (h @ self.weights[-1].T + self.biases[-1]) * self.output_std + self.output_mean
+        out = dense_layer(h, self._weights_t[-1], self.biases[-1]) * self.output_std + self.output_mean
         position = np.stack([out[:, 0], out[:, 1], ls_bar - out[:, 2]], axis=1)
         rotvec = out[:, 3:6].copy()
         negative = kappa_bar < 0
@@ -90,11 +98,34 @@ class GraspPredictor:
         return position, rotvec
 
 
+@njit(cache=True)
+def dense_layer(h, weight_t, bias):
+    """h (n, k) @ weight_t (k, m) + bias (m,), single-threaded (the innermost loop over the m outputs vectorises)."""
+    n, k = h.shape
+    m = weight_t.shape[1]
+    out = np.empty((n, m))
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = bias[j]
+        for q in range(k):
+            a = h[i, q]
+            for j in range(m):
+                out[i, j] += a * weight_t[q, j]
+    return out
+
+
 def load_grasp_network(path=None) -> GraspPredictor:
-    """The shipped network (``rod_deploy/data/grasp_network.npz``) or the one at ``path``."""
+    """The shipped network (``rod_deploy/data/grasp_network.npz``) or the one at ``path``; read once per file
+    version (the same object is returned while the file is unchanged)."""
     path = Path(path) if path is not None else DEFAULT_WEIGHTS
     if not path.exists():
         raise FileNotFoundError(f'grasp network weights {path} not found (scripts/train_grasp_network.py makes them)')
+    st = path.stat()
+    return _read_grasp_network(path.resolve(), st.st_size, st.st_mtime_ns)
+
+
+@lru_cache(maxsize=4)
+def _read_grasp_network(path, size, mtime_ns):
     with np.load(path, allow_pickle=False) as z:
         n = int(z['n_layers'])
         record = json.loads(str(z['record'])) if 'record' in z.files else {}
