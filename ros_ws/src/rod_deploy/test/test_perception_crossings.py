@@ -378,3 +378,81 @@ def test_rod_end_lying_on_another_rod_is_placed_by_colour(past_px, angle_deg):
     end_error = min(min(np.linalg.norm(o.points[0] - a[-1]), np.linalg.norm(o.points[-1] - a[-1]))
                     for o in res.objects)
     assert end_error < 4.0                          # without the rule: 13-18 px
+
+
+def _lens_mask():
+    """Two rods 7 px wide meeting at a shallow angle, lying side by side (touching) for 120 px and parting
+    again: one from the upper left to the upper right, one from the lower left to the lower right."""
+    import cv2
+    mask = np.zeros((200, 400), np.uint8)
+    cv2.polylines(mask, [np.array([(20, 40), (140, 97), (260, 97), (380, 40)], np.int32)], False, 1, 7)
+    cv2.polylines(mask, [np.array([(20, 160), (140, 104), (260, 104), (380, 160)], np.int32)], False, 1, 7)
+    return mask
+
+
+def test_a_chain_carrying_two_rods_side_by_side_is_one_crossing_paired_side_by_side():
+    """Two Ys joined by a chain as wide as both rods together (a lens: two rods crossing twice, or touching
+    along a stretch) form one crossing, whatever the chain's length; its branches are paired on the same
+    side of the chain (a rod crosses to the other side at the first crossing and back at the second), not
+    by bending energy, which would run straight on from the upper left to the lower right."""
+    import cv2
+    from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
+    from rod_deploy.perception.skeleton_graph import build_skeleton_graph, skeleton_of
+    mask = _lens_mask()
+    graph = build_skeleton_graph(skeleton_of(mask.astype(bool)))
+    dist = cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+    crossings = find_crossings(graph, 6.0, 64.0, width_at=lambda p: 2.0 * dist[tuple(np.round(p).astype(int).T)],
+                               fit_px=12.0)
+    lens = [c for c in crossings if c.doubled_edge is not None]
+    assert len(lens) == 1 and len(lens[0].branches) == 4
+    pair_crossings(graph, crossings, 6.0, 12.0)
+    c = lens[0]
+    for i, j in c.pairs:        # each pair: one branch on the left, one on the right, both above or both below
+        far = [graph.branch_points(c.branches[k].edge, c.branches[k].side)[-1] for k in (i, j)]
+        assert (far[0][0] < 100) == (far[1][0] < 100)
+        assert (far[0][1] < 200) != (far[1][1] < 200)
+
+
+def test_a_chain_of_one_rod_between_two_ys_is_not_doubled():
+    """One rod with two short rods ending on it from the same side leaves two Ys joined by a chain of
+    the rod's own width: not a chain of two rods side by side."""
+    import cv2
+    from rod_deploy.perception.bending_energy_pairing import find_crossings
+    from rod_deploy.perception.skeleton_graph import build_skeleton_graph, skeleton_of
+    mask = np.zeros((200, 400), np.uint8)
+    cv2.line(mask, (20, 100), (380, 100), 1, 9)
+    cv2.line(mask, (140, 100), (90, 20), 1, 9)
+    cv2.line(mask, (260, 100), (310, 20), 1, 9)
+    graph = build_skeleton_graph(skeleton_of(mask.astype(bool)))
+    dist = cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+    crossings = find_crossings(graph, 6.0, 64.0, width_at=lambda p: 2.0 * dist[tuple(np.round(p).astype(int).T)],
+                               fit_px=15.0)
+    assert not any(c.doubled_edge is not None for c in crossings)
+
+
+def test_two_rods_crossing_twice_with_a_lens_between_are_read_whole():
+    """Generated scene cross_twice 900007 (development data): the rods cross twice 80 px apart and lie side
+    by side in between; each came back as half of one rod and half of the other (RMS 57-64 px) when the two
+    Ys were left as separate crossings, each with an unpaired branch."""
+    sc = crossing_scene('cross_twice', 900_007)
+    res = perceive(sc.image)
+    assert len(res.objects) == 2
+    for curve in sc.curves:
+        assert min(centreline_rms(o.points, curve)['rms_px'] for o in res.objects) < 1.0
+        assert min(arc_length_error(o.points, curve)['mean_px'] for o in res.objects) < 2.0
+
+
+@pytest.mark.parametrize('profile, crossings', [
+    ([7, 7, 8, 7, 9, 11, 13, 14, 14, 14, 13, 14, 12, 10, 8, 7, 7, 8, 8], 2),    # a lens: narrow at both ends
+    ([13, 13, 14, 13, 14, 12, 10, 8, 7, 7, 7, 9, 11, 13, 14, 13, 14, 14], 1),   # side by side, crossing once
+    ([14, 14, 13, 14, 14, 13, 14, 14, 13, 14, 14, 13, 14, 14], 0),               # touching all along
+    ([14, 14, 13, 14, 14, 8, 14, 14, 13, 14, 14, 13, 14, 14], 0)])               # one noisy point
+def test_overlaps_along_a_chain_of_two_rods_count_the_crossings(profile, crossings):
+    """Where two rods lying side by side overlap, the mask narrows to one rod's width (here 7 px): each such
+    neck along the chain (running median of 3) is a crossing, and the parity says whether a rod leaves on
+    the side it came in on."""
+    from rod_deploy.perception.bending_energy_pairing import overlaps_along
+    widths = np.array([0, 0] + profile + [0, 0], float)     # the junctions' points at both ends are skipped
+    points = np.stack([np.arange(len(widths), dtype=float), np.zeros(len(widths))], axis=1)
+    width_at = lambda p: widths[p[:, 0].astype(int)] + 1.0  # noqa: E731  (the mask's 2 d, one more than the width)
+    assert overlaps_along(points, [8.0, 8.0, 8.0, 8.0], width_at) == crossings

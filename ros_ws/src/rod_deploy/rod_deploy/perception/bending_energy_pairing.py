@@ -1,8 +1,9 @@
 """Pairing of the branches at a crossing by minimal bending energy (mBEST, Choi et al. 2023, sec. III-C).
 
 A crossing is a cluster of skeleton junctions: one junction where two strands cross steeply, two
-three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle, or
-several junctions around the overlap of three strands (see :func:`find_crossings`).
+three-way junctions joined by a short chain (the shared overlap) where they cross at a shallow angle or by
+a chain that carries both rods side by side (a lens between two crossings), or several junctions around
+the overlap of three strands (see :func:`find_crossings`).
 Each branch leaving the cluster gets an anchor a distance ``skip_px`` out along it (beyond the part of the
 skeleton that the junction bends; at a shallow crossing at least ``SPLAY_FRACTION`` of the overlap; at
 least half the width of the widest rod through the crossing plus 2 px, so that a thin rod's anchors lie
@@ -20,7 +21,9 @@ rod). Where colour is known, joining two branches whose colours clearly differ (
 colour in a crossing, while the skeleton of a shallow or tangential crossing can make the wrong pairing the
 straighter one. Joining the two ends of one chain into a closed loop costs ``loop_penalty`` more: where a
 stroke ends tangentially on itself (a letter b, a loop closing onto its lead-in) both pairings are
-straight, and the open curve is the likelier reading. Units: pixels.
+straight, and the open curve is the likelier reading. Across a chain of two rods side by side the rods'
+sides decide instead (:func:`same_side_pairing`): through a long lens every pairing is about as straight.
+Units: pixels.
 """
 from __future__ import annotations
 
@@ -33,7 +36,7 @@ from itertools import combinations
 import numpy as np
 from numba import njit
 
-from rod_deploy.perception.centreline import _arc_length
+from rod_deploy.perception.centreline import _arc_length, path_length
 from rod_deploy.perception.crossing_order import median0
 from rod_deploy.perception.fma import fma64
 from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
@@ -65,6 +68,7 @@ class Crossing:
     overlap_px: float = 0.0                     # length of the shared chain of a shallow crossing (0: none)
     energy: float = 0.0
     width_px: float = 0.0                       # the widest rod through the crossing (0: not measured)
+    doubled_edge: int | None = None             # the shared chain, if it carries two rods side by side
 
     def unpaired(self):
         paired = {i for p in self.pairs for i in p}
@@ -89,8 +93,11 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
     junctions joined by one chain of length L, at each of which the two other branches diverge by less than
     ``max_shallow_deg`` and leave away from the chain, with L within a factor ``shallow_slack`` of
     w / tan(theta / 2) (w the mean width of the four branches, theta their mean divergence: two strips of
-    width w crossing at theta overlap along about that length). Branch tangents as in
-    :func:`branch_geometry` (``skip_px``, ``fit_px``)."""
+    width w crossing at theta overlap along about that length); and so are two such junctions whose branches
+    leave away from a chain as wide as two of them side by side (:func:`_doubled`, any angle): the
+    crossing's ``doubled_edge`` is that chain when the rods cross an even number of times along it
+    (:func:`overlaps_along`), for :func:`same_side_pairing`. Branch tangents as in :func:`branch_geometry`
+    (``skip_px``, ``fit_px``)."""
     junctions = [nid for nid, n in graph.live_nodes() if n.kind == JUNCTION]
     parent = {nid: nid for nid in junctions}
 
@@ -120,15 +127,18 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
         r = find(nid)
         count[r] = count.get(r, 0) + sum(1 for eid, _ in graph.nodes[nid].edges if eid not in internal)
     overlaps = {}         # shared chains of shallow crossings -> their length
+    doubled = set()       # ... of them those that carry two rods side by side
     if width_at is not None:
-        for length, eid in sorted(_shallow_links(graph, chains, find, count, width_at, fit_px,
-                                                 max_shallow_deg, shallow_slack)):
+        for length, eid, is_doubled in sorted(_shallow_links(graph, chains, find, count, width_at, fit_px,
+                                                             max_shallow_deg, shallow_slack)):
             e = graph.edges[eid]
             a, b = find(e.u), find(e.v)
             if a == b or count[a] != 3 or count[b] != 3:
                 continue
             internal.add(eid)
             overlaps[eid] = length
+            if is_doubled:
+                doubled.add(eid)
             parent[a] = b
             count[b] = count.pop(a) + 3 - 2
         links = [(length, eid) for length, eid in links if eid not in internal]
@@ -154,7 +164,9 @@ def find_crossings(graph: SkeletonGraph, short_px: float, y_merge_px: float, max
         inner = sorted({eid for nid in nodes for eid, _ in graph.nodes[nid].edges if eid in internal})
         branches = [(eid, side) for nid in nodes for eid, side in graph.nodes[nid].edges if eid not in internal]
         centre = np.mean([graph.nodes[nid].position for nid in nodes], axis=0)
+        pair_of_ys = len(nodes) == 2 and len(inner) == 1 and len(branches) == 4
         crossings.append(Crossing(nodes=sorted(node_set), internal_edges=inner, branches=branches, centre=centre,
+                                  doubled_edge=inner[0] if pair_of_ys and inner[0] in doubled else None,
                                   overlap_px=max((overlaps.get(eid, 0.0) for eid in inner), default=0.0),
                                   width_px=0.0 if width_at is None or len(branches) < 4
                                   else _widest_rod(graph, branches, width_at, fit_px)))
@@ -172,10 +184,12 @@ def _widest_rod(graph, branches, width_at, fit_px):
     return widths[-2] if len(widths) >= 2 else 0.0
 
 
-def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack, min_deg=8.0):
-    """(length, edge id) of the chains that are the shared overlap of a shallow crossing (see
-    :func:`find_crossings`). The branches' directions are taken from the chain's middle (where the rods
-    cross) to a point well out along each branch: next to a Y junction the skeleton splays."""
+def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack, min_deg=8.0,
+                   max_doubled_factor=12.0):
+    """(length, edge id, doubled) of the chains that are the shared overlap of a shallow crossing (see
+    :func:`find_crossings`), or carry two rods side by side between two crossings (doubled, :func:`_doubled`).
+    The branches' directions are taken from the chain's middle (where the rods cross) to a point well out
+    along each branch: next to a Y junction the skeleton splays."""
     out = []
     cos_away = math.cos(math.radians(30.0))
     for length, eid in chains:
@@ -183,7 +197,7 @@ def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack,
         if count.get(find(e.u)) != 3 or count.get(find(e.v)) != 3 or find(e.u) == find(e.v):
             continue
         middle = e.points[len(e.points) // 2]
-        thetas, widths, ok = [], [], True
+        thetas, widths, arm_widths, ok = [], [], [], True
         for nid, other in ((e.u, e.v), (e.v, e.u)):
             node = graph.nodes[nid]
             # single three-way junctions, joined by this chain only (two chains between them: an eye, a rod
@@ -207,6 +221,8 @@ def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack,
                 d = far - middle
                 outward.append(d / max(float(np.linalg.norm(d)), 1e-9))
                 widths.append(w)
+                lo, hi = int(np.ceil(fit_px)), int(np.ceil(3 * fit_px)) + 1     # past the junction's blob
+                arm_widths.append(float(median0(width_at(pts[lo:hi]))) if len(pts) >= lo + 3 else np.inf)
             if len(outward) != 2:
                 ok = False
                 break
@@ -219,13 +235,54 @@ def _shallow_links(graph, chains, find, count, width_at, fit_px, max_deg, slack,
             thetas.append(math.acos(max(-1.0, min(1.0, float(np.dot(outward[0], outward[1]))))))
         if not ok:
             continue
+        if _doubled(e.points, arm_widths, width_at, max_doubled_factor):
+            # side by side between the two Ys: paired on the same side if the rods cross there an even
+            # number of times, else (one crossing along the stretch) by bending energy
+            out.append((length, eid, overlaps_along(e.points, arm_widths, width_at) % 2 == 0))
+            continue
         theta = max(0.5 * (thetas[0] + thetas[1]), math.radians(min_deg))
         if max(thetas) > math.radians(max_deg):
             continue
         expected = float(np.mean(widths)) / math.tan(0.5 * theta)
         if expected / slack <= length <= slack * expected:
-            out.append((length, eid))
+            out.append((length, eid, False))
     return out
+
+
+def _doubled(points, arm_widths, width_at, max_length_factor, min_sum_fraction=0.8, min_width_factor=1.6,
+             min_length_factor=3.0):
+    """True if the chain ``points`` between two Y junctions carries two rods lying side by side (a lens
+    between two crossings of two rods, or two rods running along each other for a stretch): the mask's width
+    along its middle half (median of ``width_at`` - 1) is at least ``min_sum_fraction`` of the sum of the two
+    rods' widths (the mean of the pairs of ``arm_widths`` at its two ends, each ``width_at`` - 1 too, measured
+    past the junctions' blobs) and
+    ``min_width_factor`` times the widest arm, and the chain is ``min_length_factor`` to ``max_length_factor``
+    times that width long. A single rod through the chain is no wider than its arms; the chain of a steep X
+    split into two Ys is as wide but shorter than wide."""
+    n = len(points)
+    if n < 4 or len(arm_widths) != 4:
+        return False
+    arms = [x - 1.0 for x in arm_widths]
+    width = float(median0(width_at(points[n // 4:n - n // 4]))) - 1.0
+    rods = 0.5 * (arms[0] + arms[1] + arms[2] + arms[3])
+    return (width >= min_sum_fraction * rods and width >= min_width_factor * max(arms)
+            and min_length_factor * width <= path_length(points) <= max_length_factor * width)
+
+
+def overlaps_along(points, arm_widths, width_at, single_factor=1.25, skip=2):
+    """The number of places along a chain that carries two rods side by side (:func:`_doubled`) where the
+    rods overlap, each one a crossing: maximal runs of points (``skip`` points at each end left out: the
+    junctions) where the mask's width (``width_at`` - 1, running median of 3) is at most ``single_factor``
+    times one rod's width (the median of the four ``arm_widths`` - 1) + 1 px. A lens between two
+    crossings narrows to one rod's width at both ends; two rods that come to lie side by side, cross once
+    and part again narrow once, in the middle."""
+    widths = np.asarray(width_at(points), dtype=np.float64)[skip:len(points) - skip] - 1.0
+    if len(widths) < 3:
+        return 0
+    smooth = np.median(np.lib.stride_tricks.sliding_window_view(widths, 3), axis=1)
+    single = float(np.median(np.asarray(arm_widths, dtype=np.float64) - 1.0))
+    narrow = smooth <= single_factor * single + 1.0
+    return int(narrow[0]) + int(np.count_nonzero(narrow[1:] & ~narrow[:-1]))
 
 
 def _closest_odd_pair(graph, links, find, count, max_px, max_branches):
@@ -452,4 +509,32 @@ def pair_crossings(graph: SkeletonGraph, crossings: list, skip_px: float, fit_px
     attach_branch_geometry(graph, crossings, skip_px, fit_px, colour_of)
     for c in crossings:
         c.pairs, c.energy = minimal_energy_pairing(c.branches, min_colour_separation=min_colour_separation)
+        if c.doubled_edge is not None:
+            c.pairs = same_side_pairing(graph, c) or c.pairs
     return crossings
+
+
+def same_side_pairing(graph: SkeletonGraph, crossing: Crossing):
+    """The pairing at two crossings joined by a chain that carries both rods side by side (a lens, two rods
+    crossing twice): the rod that enters on one side of the chain, seen along it, crosses to the other side
+    at the first crossing and back at the second, so it leaves on the side it came in on. The branches'
+    sides from their anchors against the chain's direction at each end (over its first and last quarter).
+    The bending energy cannot tell: both pairings run straight through a long lens. [] where the two
+    branches at one end are not on opposite sides."""
+    e = graph.edges[crossing.doubled_edge]
+    pts = e.points
+    q = max(1, len(pts) // 4)
+    side_of = {}
+    for nid, direction in ((e.u, pts[q] - pts[0]), (e.v, pts[-1] - pts[-1 - q])):
+        origin = graph.nodes[nid].position
+        for k, b in enumerate(crossing.branches):
+            if graph.edge_end_at(b.edge, b.side) == nid:
+                r = b.anchor - origin
+                side_of[k] = (nid, float(np.sign(direction[0] * r[1] - direction[1] * r[0])))
+    pairs = []
+    for k, (nid, side) in side_of.items():
+        for m, (nid2, side2) in side_of.items():
+            if k < m and nid != nid2 and side == side2 and side != 0:
+                pairs.append((k, m))
+    used = [k for p in pairs for k in p]
+    return pairs if len(pairs) == 2 and len(set(used)) == 4 else []

@@ -15,6 +15,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from numba import njit
 from scipy.spatial import cKDTree
 
 from rod_deploy.perception.centreline import resample
@@ -79,17 +80,30 @@ def instance_dice(pred: np.ndarray, gt: np.ndarray):
 
 
 def _point_to_polyline(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
-    """Distance from each point to the polyline ``curve`` (dense enough: chunked brute force)."""
-    a, b = curve[:-1], curve[1:]
-    ab = b - a
-    ab2 = np.maximum((ab ** 2).sum(axis=1), 1e-12)
+    """Distance from each point to the polyline ``curve`` (brute force over all segments, compiled)."""
     out = np.empty(len(points))
-    for i in range(0, len(points), 256):
-        p = points[i:i + 256, None, :]
-        t = np.clip(((p - a[None]) * ab[None]).sum(axis=2) / ab2[None], 0.0, 1.0)
-        q = a[None] + t[..., None] * ab[None]
-        out[i:i + 256] = np.sqrt(((p - q) ** 2).sum(axis=2)).min(axis=1)
+    _polyline_distances(np.ascontiguousarray(points, dtype=np.float64),
+                        np.ascontiguousarray(curve, dtype=np.float64), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _polyline_distances(points, curve, out):
+    """``out[i]``: the distance from ``points[i]`` to the nearest segment of ``curve`` (the closest point on a
+    segment a + t (b - a), t clipped to [0, 1], |b - a|^2 at least 1e-12)."""
+    for i in range(points.shape[0]):
+        pr, pc = points[i, 0], points[i, 1]
+        best = np.inf
+        for k in range(curve.shape[0] - 1):
+            ar, ac = curve[k, 0], curve[k, 1]
+            dr, dc = curve[k + 1, 0] - ar, curve[k + 1, 1] - ac
+            t = ((pr - ar) * dr + (pc - ac) * dc) / max(dr * dr + dc * dc, 1e-12)
+            t = min(max(t, 0.0), 1.0)
+            er, ec = pr - (ar + t * dr), pc - (ac + t * dc)
+            d2 = er * er + ec * ec
+            if d2 < best:
+                best = d2
+        out[i] = np.sqrt(best)
 
 
 def centreline_rms(path: np.ndarray, reference: np.ndarray, step_px: float = 0.5) -> dict:

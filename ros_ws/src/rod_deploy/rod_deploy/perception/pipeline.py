@@ -16,9 +16,12 @@ sub-pixel refinement.
     cluster, and clusters with an odd number of branches are joined to the nearest other odd one within
     ``y_merge_factor`` w along the skeleton (a shallow X split into two Ys, three rods crossing near one
     point), and, from their geometry, two Ys joined by a longer shared chain of about w / tan(angle / 2)
-    (a shallow crossing, :func:`~.bending_energy_pairing.find_crossings`);
+    (a shallow crossing) or by a chain as wide as both rods together (two rods side by side between two
+    crossings, :func:`~.bending_energy_pairing.find_crossings`);
     branches paired by minimal bending energy (anchors ``skip_factor`` w + 2 px out, tangents over
     1.5 w), with a penalty for joining branches of clearly different colour (``min_colour_separation``);
+    across a chain of two rods side by side that narrows to one rod's width an even number of times (the
+    rods cross at both Ys, or at neither) each branch is paired with the one on its side of the chain;
  4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths); an
     object whose colour changes for good along its length is cut there (rods of different colours
     touching end to end, a rod end lying along another rod); then ends of different objects of one
