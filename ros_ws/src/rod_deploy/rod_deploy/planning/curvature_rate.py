@@ -72,7 +72,8 @@ CLOSEST_KNOT_SPACING_BAR = 0.25
 CLOSEST_RATE_WEIGHT = 0.1
 
 
-def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m, max_rate, cap_bar):
+def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m, max_rate, cap_bar,
+                                free_start_point=False):
     """The curve closest to ``pattern`` (least squares on the nodes at equal arc length, Eq. 17's pairing; the free
     end at the pattern's first point) whose curvature changes at most ``max_rate`` per L_gb and stays within
     ``cap_bar`` (m,) [kappa_bar] at each node (the friction-limited start): a ProcessedPattern on the same nodes whose
@@ -84,7 +85,15 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     every later node lags along the pattern. Here the unknowns are the curvature at knots every
     CLOSEST_KNOT_SPACING_BAR L_gb (piecewise linear, so the rate is the slope between knots) and the first heading,
     started from ``kappa0`` (m,) [1/m] and ``theta0`` [rad] (the spread curvature and the start heading); the limits
-    are penalties, then enforced exactly (``limit_curvature_rate``, a clip) and the curve integrated once more."""
+    are penalties, then enforced exactly (``limit_curvature_rate``, a clip) and the curve integrated once more.
+
+    ``free_start_point``: the curve's first point (the free end) is an unknown too (two more, appended after the
+    knots: its offset from the pattern's first point in L_gb), instead of the pattern's first point. Near a free end
+    the friction-limited start holds the curvature to kappa_max(s) ~ s^2, so a curved start (letter C) must begin
+    nearly straight; from the pattern's first point that straight start leaves the pattern by up to 8 mm (rod #3),
+    while a free end placed a few millimetres inside the bend lets the same bounded curve straddle the pattern
+    (``benchmarks/start_floor.py``: letter C, rod #3, mu 0.5, the best e_mean under the planner's bounds 0.144 ->
+    0.072 cm)."""
     from .achievable_start import _cumtrapz, integrate_curvature
     from .trajectory import ProcessedPattern
 
@@ -107,47 +116,58 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     dtheta_t, half_ds = np.ascontiguousarray(dtheta.T), 0.5 * ds / Lgb
     last = {}                                           # the heading of the last curve integrated (x, theta)
 
+    n_free = 2 if free_start_point else 0
+
+    def origin(x):
+        return target[0] + Lgb * x[n_knots + 1:] if free_start_point else target[0]
+
     def curve(x):
-        xy, theta = integrate_curvature(s, theta0 + x[0], hat @ x[1:] / Lgb, target[0])
+        xy, theta = integrate_curvature(s, theta0 + x[0], hat @ x[1:n_knots + 1] / Lgb, origin(x))
         last['x'], last['theta'] = x.copy(), theta
         return xy, theta
 
     def residuals(x):
         xy, _ = curve(x)
-        c = x[1:]
+        c = x[1:n_knots + 1]
         rate = D @ c
         return np.concatenate([((xy - target) / Lgb).ravel(), w_pen * np.maximum(np.abs(rate) - max_rate, 0.0),
                                w_pen * np.maximum(np.abs(c) - cap_knots, 0.0), CLOSEST_RATE_WEIGHT * rate])
 
     def normal_equations(x, r):
         theta = last['theta'] if np.array_equal(last.get('x'), x) else curve(x)[1]
-        c = x[1:]
+        c = x[1:n_knots + 1]
         rate = D @ c
         # the fit's Jacobian transposed, (k + 1, 2, n - 1): d(x, y) / d(theta0, c) at the nodes after the first
-        # (the first is fixed), trapezoids cumulated along the contiguous last axis
+        # (the first does not depend on them), trapezoids cumulated along the contiguous last axis
         f = dtheta_t[:, None, :] * np.stack([-np.sin(theta), np.cos(theta)])[None]
-        Gt = np.cumsum(half_ds * (f[:, :, 1:] + f[:, :, :-1]), axis=2).reshape(n_knots + 1, -1)
+        Gt3 = np.cumsum(half_ds * (f[:, :, 1:] + f[:, :, :-1]), axis=2)
+        Gt = Gt3.reshape(n_knots + 1, -1)
         G = np.ascontiguousarray(Gt.T)          # (2 (n - 1), k + 1): OpenBLAS's threaded Gt @ Gt.T took 15 ms
         A, g = G.T @ G, Gt @ r[2:2 * n].reshape(n - 1, 2).T.ravel()
+        if free_start_point:
+            # the start point's offset [L_gb] moves every node's fit residual by itself (d r / d offset = I)
+            cross = Gt3.sum(axis=2).T                                         # (2, k + 1)
+            A = np.block([[A, cross.T], [cross, n * np.eye(2)]])
+            g = np.concatenate([g, r[:2 * n].reshape(n, 2).sum(axis=0)])
         w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2    # the rate rows: D^T diag(w) D
         main = np.zeros(n_knots)
         main[:-1] += w
         main[1:] += w
         main += pen2 * (np.abs(c) > cap_knots)                                # the cap rows: diagonal
         k = np.arange(n_knots - 1)
-        Ac = A[1:, 1:]                                                        # a view: updates A
+        Ac = A[1:n_knots + 1, 1:n_knots + 1]                                  # a view: updates A
         Ac[np.arange(n_knots), np.arange(n_knots)] += main
         Ac[k, k + 1] -= w
         Ac[k + 1, k] -= w
-        g[1:] += D.T @ (pen2 * np.sign(rate) * np.maximum(np.abs(rate) - max_rate, 0.0) + rate_weight2 * rate) \
-            + pen2 * np.sign(c) * np.maximum(np.abs(c) - cap_knots, 0.0)
+        g[1:n_knots + 1] += (D.T @ (pen2 * np.sign(rate) * np.maximum(np.abs(rate) - max_rate, 0.0)
+                                    + rate_weight2 * rate) + pen2 * np.sign(c) * np.maximum(np.abs(c) - cap_knots, 0.0))
         return A, g
 
-    x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb)])
+    x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb), np.zeros(n_free)])
     x = levenberg_marquardt(residuals, normal_equations, x0)
-    kappa_bar = np.clip(hat @ x[1:], -cap_bar, cap_bar)
+    kappa_bar = np.clip(hat @ x[1:n_knots + 1], -cap_bar, cap_bar)
     kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
-    xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, target[0])
+    xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, origin(x))
     return ProcessedPattern(s=s.copy(), xy=xy, tangent=np.column_stack([np.cos(theta), np.sin(theta)]),
                             kappa=kappa_bar / Lgb)
 
