@@ -13,7 +13,8 @@ of the whole shape would remove); the free end's drift from where the plan puts 
 against the plan's; and the mean of |deployed - asked| over the first 20 cm and over the rest. Simulator variants, the
 plan unchanged: ``base`` (the table's set-up), ``mu1`` (table friction 1.0 under a plan made for 0.5: what the
 friction-limited laying costs), ``clamp3`` (the first 3 nodes held on the asked curve: a start that carries a
-moment, ``SimulationSettings.clamp_start_xy``).
+moment, ``SimulationSettings.clamp_start_xy``). Below the table: the curvature kappa_bar along the first 20 cm, asked
+(``asked_xy``) and laid (the deployed curve's, from its points 5 mm apart), beside the planner's friction bound.
 """
 from __future__ import annotations
 
@@ -66,6 +67,20 @@ def stretch_errors_cm(asked_xy, deployed_xy, split_m=0.2):
     return float(d[s < split_m].mean()), float(d[s >= split_m].mean())
 
 
+def curvature_profile(asked_xy, deployed_xy, lgb_m, friction, until_m=0.2, step_m=0.005):
+    """[(s [m], asked kappa_bar, laid kappa_bar, the bound mu (s / L_gb)^2 / 8)] every 1 cm up to ``until_m``: the
+    turning of 5 mm chords over their spacing (released sign dropped: the C turns one way)."""
+    length = float(np.sum(np.linalg.norm(np.diff(asked_xy, axis=0), axis=1)))
+    n = int(length / step_m) + 1
+
+    def kappa_bar(xy):
+        d = np.diff(resample(xy, n, length=length), axis=0)
+        return np.diff(np.unwrap(np.arctan2(d[:, 1], d[:, 0]))) / step_m * lgb_m
+    ka, kl = kappa_bar(asked_xy), kappa_bar(deployed_xy)
+    s = (np.arange(len(ka)) + 1) * step_m
+    return [(s[i], ka[i], kl[i], friction * (s[i] / lgb_m) ** 2 / 8) for i in range(0, len(s), 2) if s[i] <= until_m]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--patterns', default='letterC')
@@ -105,6 +120,7 @@ def main():
                            turn_deg=float(((heading_deg(dep) - heading_deg(asked)) + 180) % 360 - 180),
                            first=first, rest=rest, moved_mm=1000 * float(np.linalg.norm(asked[0] - P[0])),
                            cpu=time.process_time() - cpu)
+                row['profile'] = curvature_profile(asked, dep, rod.gravito_bending_length_m, sim.friction)
                 rows.append(row)
                 print(row, flush=True)
                 write(out, rows, args, t_all)
@@ -125,6 +141,14 @@ def write(out, rows, args, t_all):
         lines.append(f'| {r["pattern"]} | {r["start"]} | {r["variant"]} | {r["e_plan"]:.3f} | {r["e_dep"]:.3f} | '
                      f'{r["e_vs_plan"]:.3f} | {r["e_rigid"]:.3f} | {r["drift_mm"]:.1f} | {r["turn_deg"]:.1f} | '
                      f'{r["first"]:.3f} | {r["rest"]:.3f} | {r["moved_mm"]:.1f} |')
+    for r in rows:
+        lines += ['', f'Curvature along the first 20 cm, {r["pattern"]}, {r["start"]} start point, sim {r["variant"]}: '
+                  's [cm], asked kappa_bar, laid kappa_bar, the planner\'s bound mu (s / L_gb)^2 / 8', '',
+                  '| s cm | ' + ' | '.join(f'{100 * p[0]:.1f}' for p in r['profile']) + ' |',
+                  '|---|' + '---|' * len(r['profile']),
+                  '| asked | ' + ' | '.join(f'{abs(p[1]):.3f}' for p in r['profile']) + ' |',
+                  '| laid | ' + ' | '.join(f'{abs(p[2]):.3f}' for p in r['profile']) + ' |',
+                  '| bound | ' + ' | '.join(f'{p[3]:.3f}' for p in r['profile']) + ' |']
     out.write_text('\n'.join(lines) + '\n')
 
 
