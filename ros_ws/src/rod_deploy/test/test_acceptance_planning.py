@@ -149,3 +149,25 @@ def test_plan_planned_curve_flag_chooses_the_curve(tmp_path, capsys, rounded_zig
         main(['plan', '--pattern', str(tmp_path / 'z.txt'), '--rod', str(rod), '--out', str(tmp_path / 'x.csv'),
               '--planned-curve', 'nearest'])
     assert e.value.code == 2
+
+
+def test_plan_free_start_point_flag_moves_the_free_end_only_when_asked(tmp_path, capsys):
+    """By default the free end starts at the pattern's first point (CONTRACTS.md section 4): the trajectory's first
+    pose, the hanging pose, is straight above it. ``--free-start-point`` lets a curve bent from its first point (a
+    C-like arc) start a few millimetres inside the bend; the JSON line says where and how far, and the first pose
+    is above that point."""
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    th = np.linspace(0.0, 1.3 * np.pi, 400)
+    np.savetxt(tmp_path / 'c.txt', np.column_stack([0.1 * np.sin(th), 0.1 * (1.0 - np.cos(th))]))
+    out = {}
+    for name, extra in (('held', []), ('free', ['--free-start-point'])):
+        assert main(['plan', '--pattern', str(tmp_path / 'c.txt'), '--rod', str(rod), '--out',
+                     str(tmp_path / f'{name}.csv')] + extra) == 0
+        out[name] = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        first = np.loadtxt(tmp_path / f'{name}.csv', delimiter=',', skiprows=1)[0]
+        np.testing.assert_allclose(first[1:3], out[name]['free_end_start'], atol=1e-6)
+    assert out['held']['free_end_moved_m'] < 1e-6
+    # the processed pattern's first point: the smoothing spline's, within a fraction of a millimetre of the drawn one
+    np.testing.assert_allclose(out['held']['free_end_start'], [0.0, 0.0], atol=2e-4)
+    assert 1e-3 < out['free']['free_end_moved_m'] < 0.02

@@ -86,8 +86,9 @@ def test_planner_option_is_the_default_and_leaves_a_straight_start_alone():
     plain = plan_trajectory(pts, ROD, PlannerSettings(start='tangent'))
     plan = plan_trajectory(pts, ROD)
     assert plain.pattern.xy.shape == plan.pattern.xy.shape
-    np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-12)   # hanging above P(0)
-    np.testing.assert_allclose(plan.pattern.xy[0], pts[0], atol=2e-4)
+    np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-12)   # hanging above its start
+    held = plan_trajectory(pts, ROD, PlannerSettings(free_start_point=False))
+    np.testing.assert_allclose(held.pattern.xy[0], pts[0], atol=2e-4)                 # held: P(0)
     assert np.max(np.abs(plan.pattern.xy - plain.pattern.xy)) > 1e-4          # the start was changed
     with pytest.raises(PlanningError, match='start'):
         plan_trajectory(pts, ROD, PlannerSettings(start='curved'))
@@ -114,5 +115,6 @@ def test_cli_plan_start_option(tmp_path, capsys):
     np.testing.assert_array_equal(outs[None][1], outs['achievable'][1])      # the default start
     a, b = outs['tangent'], outs['achievable']
     assert len(a[0]) == len(b[0])
-    np.testing.assert_allclose(a[1][0], b[1][0], atol=1e-9)            # the same hanging pose above P(0)
+    np.testing.assert_allclose(a[1][0, 2], b[1][0, 2], atol=1e-9)      # both start at the hanging pose, the
+    assert np.linalg.norm(a[1][0, :2] - b[1][0, :2]) < 0.01             # achievable one a few mm off P(0)
     assert np.max(np.abs(a[1] - b[1])) > 1e-4                           # a different start

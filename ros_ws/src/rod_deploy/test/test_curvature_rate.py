@@ -123,7 +123,12 @@ def test_the_closest_curve_keeps_the_limits_and_stays_nearer_the_pattern_than_th
     np.testing.assert_allclose(xy, c.xy, atol=1e-9)
     np.testing.assert_allclose(-c.kappa * LGB, kb, atol=1e-9)
     np.testing.assert_allclose(closest.asked_xy, c.xy, atol=1e-6)
-    np.testing.assert_allclose(c.xy[0], given.xy[0], atol=1e-9)                 # the free end on the pattern
+    # the hanging pose above its first point; the start point held: on the pattern. Fitting the start point too
+    # lowers the fit's sum of squares but not the zig-zag's mean distance: the held one is kept (it is nearer)
+    np.testing.assert_allclose(closest.position[0, :2], c.xy[0], atol=1e-12)
+    held = plan_trajectory(pts, ROD, PlannerSettings(free_start_point=False))
+    np.testing.assert_allclose(held.pattern.xy[0], given.xy[0], atol=1e-9)
+    np.testing.assert_allclose(closest.pattern.xy, held.pattern.xy, atol=1e-12)
     # nearer the pattern than the spread curvature's curve, by a wide margin
     e_spread = eq17_error(given.xy, spread.asked_xy)['e_mean_cm']
     e_closest = eq17_error(given.xy, closest.asked_xy)['e_mean_cm']
@@ -234,10 +239,12 @@ def test_the_fit_rows_normal_equations_by_recurrence_are_the_dense_products():
     np.testing.assert_allclose(g, J.T @ r[1:].ravel(), rtol=1e-12, atol=1e-12 * np.abs(g).max())
 
 
-def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypatch, rounded_zigzag):
+@pytest.mark.parametrize('free_start_point', [True, False])
+def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypatch, rounded_zigzag,
+                                                                          free_start_point):
     """The closest curve forms J^T J and J^T r without stacking J (the penalty rows analytically): at the start and
     at the solution of a plan with active rate and cap penalties they match a finite-difference Jacobian of its
-    residuals."""
+    residuals, with the start point held and fitted (two unknowns after the knots)."""
     from rod_deploy.planning import curvature_rate
     seen = []
     solve = curvature_rate.levenberg_marquardt
@@ -248,10 +255,12 @@ def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypa
         return x
 
     monkeypatch.setattr(curvature_rate, 'levenberg_marquardt', spy)
-    plan_trajectory(rounded_zigzag, ROD, PlannerSettings())
-    residuals, normal_equations, x0, x1, kw = seen[0]
+    plan_trajectory(rounded_zigzag, ROD, PlannerSettings(free_start_point=free_start_point))
+    # the last fit: with free_start_point the plan fits the curve held, then free
+    residuals, normal_equations, x0, x1, kw = seen[-1]
+    assert len(seen) == 1 + free_start_point
     # at the start and near the solution (which sits on the rate limit's hinge, where no finite difference holds)
-    k = len(x0) - 1                                     # knots: rate (k - 1) and smoothing (k - 1) rows after the fit
+    k = len(x0) - 1 - 2 * free_start_point             # knots: rate (k - 1) and smoothing (k - 1) rows after the fit
     bound, _ = kw['bounds']                             # the cap on the knots: the solver's bounds
     assert np.any(np.abs(x1) > bound)                   # active at the solution (a penalty)
     for x in (x0, x1 + 1e-3 * np.random.default_rng(0).standard_normal(len(x1))):
@@ -263,3 +272,60 @@ def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypa
         A, g = normal_equations(x, residuals(x))
         np.testing.assert_allclose(A, J.T @ J, rtol=1e-5, atol=1e-5 * np.abs(J.T @ J).max())
         np.testing.assert_allclose(g, J.T @ r, rtol=1e-5, atol=1e-5 * np.abs(J.T @ r).max())
+
+
+def c_like_arc(radius_m=0.1, turn_rad=1.3 * np.pi, n=400):
+    """An arc bent from its very first point, like the letter C (|kappa_bar| 0.34 on rod #3; the C: up to 0.5)."""
+    th = np.linspace(0.0, turn_rad, n)
+    return np.column_stack([radius_m * np.sin(th), radius_m * (1.0 - np.cos(th))])
+
+
+def test_a_free_start_point_brings_a_curved_start_nearer_the_pattern_and_moves_the_hanging_pose_with_it():
+    """Near the free end friction holds only kappa_max(s) ~ s^2, so a stroke bent from its first point must start
+    nearly straight. Held at the pattern's first point, that straight start runs outside the bend; with the start
+    point fitted too, the same bounded curve is put down a few millimetres inside it and straddles the pattern: it is
+    nearer the pattern (Eq. 17 e_mean of the asked curve), keeps every limit, is one curve from its own first point,
+    and the trajectory's hanging pose (where every simulator starts the free end) is above that point."""
+    from rod_deploy.deployment.metrics import eq17_error
+    from rod_deploy.deployment.simulate import replay_schedule
+    from rod_deploy.planning.achievable_start import friction_curvature_limit, integrate_curvature
+    pts = c_like_arc()
+    held = plan_trajectory(pts, ROD, PlannerSettings(free_start_point=False))
+    free = plan_trajectory(pts, ROD, PlannerSettings(free_start_point=True))
+    assert not PlannerSettings().free_start_point       # the contract's start (the pattern's first point) by default
+    given = free.drawn_pattern
+    e_held = eq17_error(given.xy, held.asked_xy)['e_mean_cm']
+    e_free = eq17_error(given.xy, free.asked_xy)['e_mean_cm']
+    assert e_free < 0.8 * e_held                         # 0.162 -> 0.095 cm
+    moved = np.linalg.norm(free.pattern.xy[0] - given.xy[0])
+    assert 1e-3 < moved < 0.02                           # millimetres, not the pattern abandoned
+    np.testing.assert_allclose(held.pattern.xy[0], given.xy[0], atol=1e-9)
+    # the limits: the friction bound from the (new) free end and the rate limit
+    kb = free.inputs[:, 2]
+    assert np.all(np.abs(kb) <= friction_curvature_limit(given.s, LGB, 0.5) * LGB + 1e-9)
+    assert np.abs(np.diff(kb)).max() <= default_max_rate(0.5) * STEP / LGB * 1.03
+    c = free.pattern
+    xy, _ = integrate_curvature(c.s, np.arctan2(c.tangent[0, 1], c.tangent[0, 0]), c.kappa, c.xy[0])
+    np.testing.assert_allclose(xy, c.xy, atol=1e-9)
+    np.testing.assert_allclose(free.asked_xy[0], c.xy[0], atol=1e-12)
+    # the hanging pose (first pose: rod straight down) above the planned first point, the simulator's start there
+    np.testing.assert_allclose(free.position[0, :2], c.xy[0], atol=1e-12)
+    assert free.position[0, 2] == pytest.approx(ROD.hanging_height_m)
+    sched = replay_schedule(free.t, free.position, free.quaternion, ROD)
+    np.testing.assert_allclose(sched.start_xy, c.xy[0], atol=1e-12)
+    # the lead-in runs from the hanging pose to the first grasp of the planned curve
+    k = free.first_grasp_index
+    assert np.linalg.norm(free.position[k, :2] - c.xy[0]) < np.linalg.norm(free.position[k, :2] - given.xy[0]) + 0.02
+
+
+def test_the_free_start_point_refuses_nothing_the_held_one_accepts():
+    """The friction check runs on the friction-limited start before the closest curve is fitted, so the start point's
+    freedom neither refuses a pattern nor lets one through: a straight lead into a tight curl is refused both ways
+    (named), a straight pattern is planned both ways with its start on the pattern."""
+    for free in (True, False):
+        with pytest.raises(PlanningError, match='cannot hold'):
+            plan_trajectory(lead_then_curl(0.05, 0.016), ROD, PlannerSettings(free_start_point=free))
+    line = np.column_stack([np.linspace(0.0, 0.4, 81), np.zeros(81)])
+    plans = [plan_trajectory(line, ROD, PlannerSettings(free_start_point=f)) for f in (True, False)]
+    for p in plans:
+        np.testing.assert_allclose(p.pattern.xy[0], line[0], atol=1e-4)

@@ -63,6 +63,11 @@ def register(subparsers):
     p.add_argument('--planned-curve', choices=('closest', 'spread'), default=None,
                    help='closest (default): plan on the curve nearest the pattern within the rate limit and the '
                         'friction-limited start; spread: the pattern\'s points with its curvature spread by the limit')
+    p.add_argument('--free-start-point', action='store_true',
+                   help='let the closest planned curve\'s first point (where the free end is put down, the hanging '
+                        'pose above it) leave the pattern\'s first point where that brings a curved start nearer '
+                        'the pattern (letter C, rod #3: 6.8 mm); off by default: CONTRACTS.md starts a deployment '
+                        'with the free end at the pattern\'s first point')
     p.add_argument('--refine', type=int, default=None, metavar='N',
                    help='refine the plan with N simulations of our DER (N >= 2: the unrefined plan and at least one '
                         'template; default off)')
@@ -71,6 +76,8 @@ def register(subparsers):
 
 
 def run(args) -> int:
+    import numpy as np
+
     from rod_deploy.planning.neural_controller import OutOfTrainedRange
     from rod_deploy.planning.pattern_input import load_pattern
     from rod_deploy.planning.rod_description import load_rod_description
@@ -89,6 +96,7 @@ def run(args) -> int:
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
                                    speed_m_s=args.speed, **({'start': args.start} if args.start else {}),
                                    **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
+                                   free_start_point=args.free_start_point,
                                    **({'max_kappa_bar_rate': args.max_kappa_bar_rate}
                                       if args.max_kappa_bar_rate is not None else {}))
         bar = None
@@ -123,6 +131,8 @@ def run(args) -> int:
         dev_m, i = plan.asked_deviation()
         summary['planned_curve_max_deviation_m'] = round(dev_m, 4)
         summary['planned_curve_deviation_at'] = [round(float(v), 4) for v in plan.drawn_pattern.xy[i]]
+        summary['free_end_start'] = [round(float(v), 6) for v in plan.pattern.xy[0]]
+        summary['free_end_moved_m'] = round(float(np.linalg.norm(plan.pattern.xy[0] - plan.drawn_pattern.xy[0])), 6)
     if refined:
         summary['refine'] = refine_record
     if args.plot:

@@ -72,7 +72,8 @@ CLOSEST_KNOT_SPACING_BAR = 0.25
 CLOSEST_RATE_WEIGHT = 0.1
 
 
-def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m, max_rate, cap_bar):
+def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m, max_rate, cap_bar,
+                                free_start_point=False):
     """The curve closest to ``pattern`` (least squares on the nodes at equal arc length, Eq. 17's pairing; the free
     end at the pattern's first point) whose curvature changes at most ``max_rate`` per L_gb and stays within
     ``cap_bar`` (m,) [kappa_bar] at each node (the friction-limited start): a ProcessedPattern on the same nodes whose
@@ -84,7 +85,15 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     every later node lags along the pattern. Here the unknowns are the curvature at knots every
     CLOSEST_KNOT_SPACING_BAR L_gb (piecewise linear, so the rate is the slope between knots) and the first heading,
     started from ``kappa0`` (m,) [1/m] and ``theta0`` [rad] (the spread curvature and the start heading); the limits
-    are penalties, then enforced exactly (``limit_curvature_rate``, a clip) and the curve integrated once more."""
+    are penalties, then enforced exactly (``limit_curvature_rate``, a clip) and the curve integrated once more.
+
+    ``free_start_point``: the curve's first point (the free end) is an unknown too (two more, appended after the
+    knots: its offset from the pattern's first point in L_gb), instead of the pattern's first point. Near a free end
+    the friction-limited start holds the curvature to kappa_max(s) ~ s^2, so a curved start (letter C) must begin
+    nearly straight; from the pattern's first point that straight start leaves the pattern by up to 8 mm (rod #3),
+    while a free end placed a few millimetres inside the bend lets the same bounded curve straddle the pattern
+    (``benchmarks/start_floor.py``: letter C, rod #3, mu 0.5, the best e_mean under the planner's bounds 0.144 ->
+    0.072 cm)."""
     from .achievable_start import _cumtrapz, integrate_curvature
     from .closest_curve_kernel import column_support, fit_normal_equations
     from .trajectory import ProcessedPattern
@@ -109,14 +118,18 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     half_ds = 0.5 * ds / Lgb
     knots = slice(1, 1 + n_knots)                       # the knots' place in the unknowns (theta0 first)
     rate_weight2, pen2 = CLOSEST_RATE_WEIGHT ** 2, w_pen ** 2
-    bound = np.full(1 + n_knots, np.inf)
+    n_free = 2 if free_start_point else 0               # the start point's offset [L_gb], after the knots
+    bound = np.full(1 + n_knots + n_free, np.inf)
     bound[knots] = cap_knots
     diagonal, upper = np.arange(n_knots), np.arange(n_knots - 1)
     last = {}                                           # the heading of the last curve integrated (x, theta)
 
+    def origin(x):
+        return target[0] + Lgb * x[1 + n_knots:] if free_start_point else target[0]
+
     def curve(x):
         # the piecewise linear curvature between the knots (the hat functions' sum)
-        xy, theta = integrate_curvature(s, theta0 + x[0], np.interp(s, s_knots, x[knots]) / Lgb, target[0])
+        xy, theta = integrate_curvature(s, theta0 + x[0], np.interp(s, s_knots, x[knots]) / Lgb, origin(x))
         last['x'], last['theta'] = x.copy(), theta
         return xy, theta
 
@@ -128,7 +141,16 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
 
     def normal_equations(x, r):
         theta = last['theta'] if np.array_equal(last.get('x'), x) else curve(x)[1]
-        A, g = fit_normal_equations(theta, dtheta, first, settled, half_ds, r[:2 * n].reshape(n, 2))
+        r_fit = r[:2 * n].reshape(n, 2)
+        A, g = fit_normal_equations(theta, dtheta, first, settled, half_ds, r_fit)
+        if free_start_point:
+            # the start point's offset [L_gb] moves every node's fit residual by itself (d r / d offset = I); its
+            # cross terms with (theta0, knots) are the fit Jacobian's columns summed over the nodes (formed densely:
+            # an option, not the default path)
+            f = dtheta.T[:, None, :] * np.stack([-np.sin(theta), np.cos(theta)])[None]
+            cross = np.cumsum(half_ds * (f[:, :, 1:] + f[:, :, :-1]), axis=2).sum(axis=2).T     # (2, k + 1)
+            A = np.block([[A, cross.T], [cross, n * np.eye(2)]])
+            g = np.concatenate([g, r_fit.sum(axis=0)])
         rate = np.diff(x[knots]) / h_bar
         # the rate rows: D^T diag(w) D, D the knots' differences over h_bar
         w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2
@@ -143,13 +165,13 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
         g[knots] += (np.r_[0.0, v] - np.r_[v, 0.0]) / h_bar                 # D^T v
         return A, g
 
-    x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb)])
+    x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb), np.zeros(n_free)])
     # ftol 1e-13: on a flat minimum (a cursive e, an outward spiral) 1e-10 left the plan up to 1e-5 m, 1e-5 rad from
     # the minimum's (benchmarks/results/planning_equivalence.md), for 2 % more Jacobians over its 64 fits
     x = levenberg_marquardt(residuals, normal_equations, x0, bounds=(bound, w_pen), ftol=1e-13)
     kappa_bar = np.clip(np.interp(s, s_knots, x[knots]), -cap_bar, cap_bar)
     kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
-    xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, target[0])
+    xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, origin(x))
     return ProcessedPattern(s=s.copy(), xy=xy, tangent=np.column_stack([np.cos(theta), np.sin(theta)]),
                             kappa=kappa_bar / Lgb)
 

@@ -25,7 +25,14 @@ sudden change of the bend's moment drags the laid rod (``benchmarks/grasp_jump.p
 one curve (``planned_curve='closest'``, the default): the curve nearest the pattern at equal arc length whose
 curvature keeps the rate limit and the friction-limited start (``curvature_rate.closest_rate_limited_curve``), its
 points, tangents and curvature agreeing, kept when it is nearer the pattern (mean distance over the nodes) than the
-curve of the spread curvature; otherwise (``'spread'``) the pattern's points and tangents with the spread curvature,
+curve of the spread curvature (with ``free_start_point``, an option (off by default: CONTRACTS.md section 4 starts
+every deployment with the free end at the pattern's first point), the
+closest curve is fitted with its first point held at the pattern's and with it free, and the nearer of the two is
+the candidate: near a free end friction holds only kappa_max(s) ~ s^2, so a start bent from its first point must
+begin nearly straight, and a free end put down a few millimetres inside the bend lets that straight start straddle
+the pattern instead of running outside it: letter C on rod #3, Eq. 17 of the planned curve 0.183 -> 0.114 cm,
+deployed in our DER 0.375 -> 0.244 cm, ``benchmarks/start_floor.py``, ``benchmarks/results/start_point_comparison.md``);
+otherwise (``'spread'``) the pattern's points and tangents with the spread curvature,
 which rounds a corner wider than the pattern so that the later nodes lag along it (``asked_xy``: the curve the grasps
 ask for, reported by ``rod-deploy plan``). With the default start, a
 planned curve that table friction cannot hold - too tight a bend too close to the free end, where the laid part
@@ -37,7 +44,9 @@ solvers take the released code's kappa_bar = -kappa L_gb (positive turns right, 
 Gripper frame (CONTRACTS.md section 4): +z_gripper is the direction in which the rod leaves the gripper, i.e. minus
 the rod's tangent at the gripper, R e_x; x_gripper = R e_z (the rod's material director d1 at the gripper, twist
 free), y_gripper = z x x. A straight hanging rod for a pattern starting along -x has the quaternion (1, 0, 0, 0).
-The trajectory starts at the hanging pose (free end on the table at P(0), the rod straight up from it, the gripper
+The trajectory starts at the hanging pose (free end on the table at the planned curve's first point - P(0), or with
+``free_start_point`` up to about 1.5 cm from it where that brings a curved start nearer the pattern (letter C on rod
+#3: 6.8 mm) - the rod straight up from it, the gripper
 turned like the first grasp about the vertical), leads in along a straight line (orientation by slerp) to the first
 grasp, then follows the pattern. Times: the gripper moves at ``speed_m_s`` and turns at most at
 ``max_angular_rate_rad_s``.
@@ -97,6 +106,11 @@ class PlannerSettings:
     #: points, tangents and curvature of one curve); 'spread': the pattern's points and tangents with its curvature
     #: spread by the rate limit (``limit_curvature_rate``, the grasps asking a curvature the points do not have)
     planned_curve: str = 'closest'
+    #: the closest planned curve's first point (where the free end is put down: the hanging pose is above it) may
+    #: leave the pattern's first point: the curve is fitted with it held there and with it free
+    #: (``closest_rate_limited_curve``), the nearer to the pattern kept; False (the default, CONTRACTS.md section 4:
+    #: a deployment starts with the free end at the pattern's first point): held there
+    free_start_point: bool = False
 
     def validate(self):
         if self.method not in METHODS:
@@ -368,12 +382,21 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
             if settings.start == 'achievable':
                 cap = np.minimum(cap, friction_curvature_limit(given.s, Lgb, mu, settings.friction_share) * Lgb)
             theta0 = np.arctan2(pattern.tangent[0, 1], pattern.tangent[0, 0])
+
+            def mean_distance(xy):
+                return float(np.mean(np.linalg.norm(xy - given.xy, axis=1)))
             closest = closest_rate_limited_curve(given, -kappa_bar / Lgb, theta0, Lgb, rate, cap)
+            if settings.free_start_point:
+                # the same fit with the start point free; the fit is least squares, Eq. 17 the mean distance: the
+                # freedom can lower the one and raise the other (the rehearsal's zig-zag: 2.29 -> 2.41 cm), so the
+                # nearer of the two by mean distance is kept
+                free = closest_rate_limited_curve(given, -kappa_bar / Lgb, theta0, Lgb, rate, cap,
+                                                  free_start_point=True)
+                if mean_distance(free.xy) < mean_distance(closest.xy):
+                    closest = free
             # kept only when nearer the pattern (mean distance over the nodes at equal arc length, Eq. 17's e_mean)
             # than the curve of the spread curvature: the fit's limits and smoothing can leave it further (letter C
             # on rods #1-#2, our spiral: the friction-limited start held to kappa_max), and then it deployed worse
-            def mean_distance(xy):
-                return float(np.mean(np.linalg.norm(xy - given.xy, axis=1)))
             if mean_distance(closest.xy) < mean_distance(asked_xy):
                 pattern = closest
                 inputs = node_inputs(pattern, rod, settings)
@@ -391,7 +414,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     qc = np.column_stack([pattern.xy, np.full(len(pattern.xy), rod.radius_m)])
     position = qc + np.einsum('nij,nj->ni', Rt, qbar) * Lgb
     R_grip = Rt @ Rotation.from_rotvec(rotvec).as_matrix() @ GRIPPER_IN_GRASP_FRAME
-    # the hanging pose: rod straight up from P(0), gripper turned like the first grasp about the vertical
+    # the hanging pose: rod straight up from the planned curve's first point, gripper turned like the first grasp
     x0 = R_grip[0][:, 0].copy()
     x0[2] = 0.0
     if np.linalg.norm(x0) < 1e-6:
