@@ -122,7 +122,9 @@ def write_table(out, rows, t_all, args):
              'deployed curve cut at the pattern length; coverage = deployed / '
              f'pattern length. Self-contact ignored. Planner start: {args.start or PlannerSettings().start} '
              '(nn, numeric; the friction-limited start plans with the table friction of the row); planned curve: '
-             f'{args.planned_curve or PlannerSettings().planned_curve} (PlannerSettings.planned_curve).', '',
+             f'{args.planned_curve or PlannerSettings().planned_curve} (PlannerSettings.planned_curve); drag '
+             'compensation at bends (PlannerSettings.drag_compensation): '
+             f'{args.drag_compensation or ("on" if PlannerSettings().drag_compensation else "off")}.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:
@@ -149,6 +151,9 @@ def main():
                     help="the planner's start (PlannerSettings.start; default: the planner's default)")
     ap.add_argument('--planned-curve', default=None, choices=('closest', 'spread'),
                     help="the curve the nodes are planned on (PlannerSettings.planned_curve; default: the planner's)")
+    ap.add_argument('--drag-compensation', default=None, choices=('on', 'off'),
+                    help="the planner's feed-forward against the drag at bends (PlannerSettings.drag_compensation, "
+                         "planning/bend_drag.py; default: the planner's)")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
@@ -168,7 +173,8 @@ def main():
     args = ap.parse_args()
     start_used = args.start or PlannerSettings().start
     extra = {**({'start': args.start} if args.start else {}),
-             **({'planned_curve': args.planned_curve} if args.planned_curve else {})}
+             **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
+             **({'drag_compensation': args.drag_compensation == 'on'} if args.drag_compensation else {})}
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')

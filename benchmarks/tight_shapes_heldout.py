@@ -88,6 +88,9 @@ def main():
     ap.add_argument('--seed', type=int, required=True)
     ap.add_argument('--shapes', type=int, default=6)
     ap.add_argument('--planned-curves', default='spread,closest')
+    ap.add_argument('--drag-compensation', default='on',
+                    help='on, off or off,on: PlannerSettings.drag_compensation (planning/bend_drag.py), each listed '
+                         'one planned and simulated; the row\'s planned curve is marked "+drag" when on')
     ap.add_argument('--plan-only', action='store_true', help='plan only (no simulation): a smoke test')
     ap.add_argument('--out-name', default=None)
     add_results_argument(ap)
@@ -96,10 +99,15 @@ def main():
     out = results_path(args, args.out_name or f'tight_shapes_heldout_seed{args.seed}.md')
     rows, t_all = [], time.perf_counter()
     for name, pts, what in tight_shapes(args.seed, args.shapes):
-        for pc in args.planned_curves.split(','):
+        for pc, drag in ((pc, d) for pc in args.planned_curves.split(',')
+                         for d in args.drag_compensation.split(',')):
+            if drag not in ('on', 'off'):
+                raise SystemExit(f'--drag-compensation: on, off or off,on, got {args.drag_compensation!r}')
             cpu = time.process_time()
+            settings = PlannerSettings(planned_curve=pc, friction=0.5, drag_compensation=drag == 'on')
+            pc = pc + (' +drag' if drag == 'on' else '')
             try:
-                plan = plan_trajectory(pts, rod, PlannerSettings(planned_curve=pc, friction=0.5))
+                plan = plan_trajectory(pts, rod, settings)
             except ValueError as e:
                 rows.append((name, what, pc, None, None, None, f'refused: {str(e)[:100]}'))
                 continue
