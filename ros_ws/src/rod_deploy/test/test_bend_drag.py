@@ -78,6 +78,7 @@ def test_planner_moves_a_tight_bend_outwards_and_leaves_a_held_one_alone():
     d = np.array([np.min(np.linalg.norm(comp.template.xy - p, axis=1)) for p in g.xy])
     assert d[g.s < 0.02].max() < 2e-4                         # the start stays on the pattern
     assert 0.002 < d.max() < 0.008                            # the bend moved by about the predicted drag
+    assert comp.drag_offset_max() == pytest.approx(d.max()) and plain.drag_offset_max() == 0.0
     centre = np.array([0.15, -0.034])                          # outwards: further from the arc's centre
     k = int(np.argmax(d))
     j = int(np.argmin(np.linalg.norm(comp.template.xy - g.xy[k], axis=1)))

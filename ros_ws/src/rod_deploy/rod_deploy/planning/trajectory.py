@@ -190,6 +190,14 @@ class PlannedTrajectory:
         d = np.linalg.norm(start.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
         return float(given.s[min(k, len(given.s) - 1)]), float(d.max())
 
+    def drag_offset_max(self):
+        """The largest distance [m] of the drag compensation's template from the pattern as drawn (nearest point of
+        the template's nodes); 0 when the pattern was planned as drawn."""
+        if self.template is None:
+            return 0.0
+        t, g = self.template.xy, self.drawn_pattern.xy
+        return float(np.max(np.min(np.linalg.norm(g[:, None, :] - t[None, :, :], axis=2), axis=1)))
+
     def asked_deviation(self):
         """(largest distance [m] of the curve the grasps ask for (``asked_xy``) from the pattern as drawn, at equal
         arc length (Eq. 17's pairing), the node where it is); (0, 0) for the intuitive baseline. It adds up what the
