@@ -4,7 +4,7 @@
 with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
 
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
-        [--planned-curves spread,closest] [--plan-only] [--commit-results]
+        [--planned-curves spread,closest] [--drag-compensation off,on] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
