@@ -109,3 +109,16 @@ def test_the_template_of_a_mirrored_pattern_is_the_mirrored_template():
     b = plan_trajectory(P * [1, -1], rod, PlannerSettings(friction=0.5))
     np.testing.assert_allclose(b.template.xy, a.template.xy * [1, -1], atol=1e-12)
     np.testing.assert_allclose(b.inputs[:, 2], -a.inputs[:, 2], atol=1e-9)
+
+
+def test_a_template_the_planner_refuses_leaves_the_patterns_own_plan():
+    # a 0.3 m rod: 5 cm straight, then an arc of radius 8 cm; with L_gb 4 cm the bend passes the friction check
+    # as drawn, the template moved outwards by the predicted drag does not (so near the free end): no template
+    rod = rod_description_from_dict({'length': 0.3, 'radius': 0.002, 'L_gb': 0.04, 'friction': 0.5})
+    a = np.linspace(0.0, 0.07 / 0.08, 30)
+    P = np.vstack([np.column_stack([np.linspace(0, 0.05, 11)[:-1], np.zeros(10)]),
+                   np.column_stack([0.05 + 0.08 * np.sin(a), 0.08 * (1 - np.cos(a))])])
+    plain = plan_trajectory(P, rod, PlannerSettings(drag_compensation=False))
+    plan = plan_trajectory(P, rod, PlannerSettings())
+    assert plan.template is None and plan.drag_offset_max() == 0.0
+    np.testing.assert_array_equal(plan.position, plain.position)

@@ -431,10 +431,13 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
         drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu,
                                    start_m=float(given.s[min(k, len(given.s) - 1)]) if k else 0.0)
         if np.max(np.abs(drag_offset)) > 0:
-            template = process_pattern(given.xy + drag_offset, settings.step_m, 0.0, settings.end_weight)
-            pattern, inputs, asked_xy, start_pattern = _planned_curve(template, rod, settings, drawn=given)
-        else:
-            template = None
+            try:
+                template = process_pattern(given.xy + drag_offset, settings.step_m, 0.0, settings.end_weight)
+                pattern, inputs, asked_xy, start_pattern = _planned_curve(template, rod, settings, drawn=given)
+            except PlanningError:
+                # the moved bend is one the planner refuses (e.g. too tight for the friction so near the free end,
+                # where the drawn one passed): the pattern's own plan stands, reported with template None
+                template = None
     t1 = time.perf_counter()
     qbar, rotvec = grasps(inputs, settings.method, progress)
     t2 = time.perf_counter()
