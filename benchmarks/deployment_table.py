@@ -124,7 +124,9 @@ def write_table(out, rows, t_all, args):
              '(nn, numeric; the friction-limited start plans with the table friction of the row); planned curve: '
              f'{args.planned_curve or PlannerSettings().planned_curve} (PlannerSettings.planned_curve); its start '
              'point: ' + ('free' if (args.start_point or ('free' if PlannerSettings().free_start_point else 'fixed'))
-                          == 'free' else 'fixed') + ' (PlannerSettings.free_start_point).', '',
+                          == 'free' else 'fixed') + ' (PlannerSettings.free_start_point); drag '
+             'compensation at bends (PlannerSettings.drag_compensation): '
+             f'{args.drag_compensation or ("on" if PlannerSettings().drag_compensation else "off")}.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:
@@ -154,6 +156,9 @@ def main():
     ap.add_argument('--start-point', default=None, choices=('free', 'fixed'),
                     help="the closest planned curve's first point fitted ('free') or held at the pattern's first "
                          "point ('fixed') (PlannerSettings.free_start_point; default: the planner's)")
+    ap.add_argument('--drag-compensation', default=None, choices=('on', 'off'),
+                    help="the planner's feed-forward against the drag at bends (PlannerSettings.drag_compensation, "
+                         "planning/bend_drag.py; default: the planner's)")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
@@ -174,7 +179,8 @@ def main():
     start_used = args.start or PlannerSettings().start
     extra = {**({'start': args.start} if args.start else {}),
              **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
-             **({'free_start_point': args.start_point == 'free'} if args.start_point else {})}
+             **({'free_start_point': args.start_point == 'free'} if args.start_point else {}),
+             **({'drag_compensation': args.drag_compensation == 'on'} if args.drag_compensation else {})}
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')

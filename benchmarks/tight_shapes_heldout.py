@@ -4,8 +4,8 @@
 with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
 
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
-        [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] [--plan-only] \
-        [--commit-results]
+        [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] \
+        [--drag-compensation off,on] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
@@ -128,6 +128,9 @@ def main():
     ap.add_argument('--start-points', default=None,
                     help="comma-separated 'fixed', 'free': PlannerSettings.free_start_point of the closest planned "
                          "curve (default: the planner's); each combined with each planned curve")
+    ap.add_argument('--drag-compensation', default='on',
+                    help='on, off or off,on: PlannerSettings.drag_compensation (planning/bend_drag.py), each listed '
+                         'one planned and simulated; the row\'s planned curve is marked "+drag" when on')
     ap.add_argument('--plan-only', action='store_true', help='plan only (no simulation): a smoke test')
     ap.add_argument('--out-name', default=None)
     add_results_argument(ap)
@@ -141,14 +144,19 @@ def main():
             raise SystemExit(f'unknown family {family!r}')
         shapes += (tight_shapes if family == 'tight' else curved_start_shapes)(args.seed, args.shapes)
     start_points = args.start_points.split(',') if args.start_points else [None]
+    drags = args.drag_compensation.split(',')
+    if any(d not in ('on', 'off') for d in drags):
+        raise SystemExit(f'--drag-compensation: on, off or off,on, got {args.drag_compensation!r}')
     simulated = {}
     for name, pts, what in shapes:
-        for pc, sp in ((pc, sp) for pc in args.planned_curves.split(',') for sp in start_points):
+        for pc, sp, drag in ((pc, sp, d) for pc in args.planned_curves.split(',') for sp in start_points
+                             for d in drags):
             cpu = time.process_time()
             extra = {} if sp is None else {'free_start_point': sp == 'free'}
-            label = pc if sp is None else f'{pc}, {sp} start point'
+            label = (pc if sp is None else f'{pc}, {sp} start point') + (' +drag' if drag == 'on' else '')
             try:
-                plan = plan_trajectory(pts, rod, PlannerSettings(planned_curve=pc, friction=0.5, **extra))
+                plan = plan_trajectory(pts, rod, PlannerSettings(planned_curve=pc, friction=0.5,
+                                                                 drag_compensation=drag == 'on', **extra))
             except ValueError as e:
                 rows.append((name, what, label, None, None, None, f'refused: {str(e)[:100]}'))
                 continue

@@ -14,7 +14,9 @@ long for the rod, too sharp, a bend the table friction cannot hold so close to t
 NaN, repeated points) gives one error line naming the point, exit 2, and no file. ``--start achievable`` (the
 default): the start laid along the curve friction can hold near the free end (``planning/achievable_start.py``; the
 rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every node on the pattern itself.
-``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``).
+``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``). Bends where
+the table cannot hold the touch-down point are planned moved outwards by the drag predicted there
+(``planning/bend_drag.py``; the JSON line's ``drag_compensation_max_offset_m``).
 
 ``--refine N`` (off by default: planning stays in milliseconds): simulation-in-the-loop refinement with our DER
 (the declared rod, its file's friction else 0.5; the settings of ``rod-deploy simulate``): N simulations, the
@@ -133,6 +135,8 @@ def run(args) -> int:
         summary['planned_curve_deviation_at'] = [round(float(v), 4) for v in plan.drawn_pattern.xy[i]]
         summary['free_end_start'] = [round(float(v), 6) for v in plan.pattern.xy[0]]
         summary['free_end_moved_m'] = round(float(np.linalg.norm(plan.pattern.xy[0] - plan.drawn_pattern.xy[0])), 6)
+        # the drag compensation's template (planning/bend_drag.py): its largest distance from the drawn pattern
+        summary['drag_compensation_max_offset_m'] = round(plan.drag_offset_max(), 4)
     if refined:
         summary['refine'] = refine_record
     if args.plot:

@@ -38,6 +38,12 @@ ask for, reported by ``rod-deploy plan``). With the default start, a
 planned curve that table friction cannot hold - too tight a bend too close to the free end, where the laid part
 is too short to resist its moment - is refused with the node named (``check_friction_holds``).
 
+Drag compensation (``drag_compensation``, on by default; ``bend_drag.py``): where the planned curvature asks more
+friction of the touch-down point than the table gives (the suspended part's lateral pull at a bend, plus the laid
+curve's curvature gradient, against mu times the point reaction), the laid rod slides towards the inside of the bend
+after touch-down. The planner predicts that drag from the planned curvature and plans once more, for the pattern
+moved outwards by it beyond the friction-limited start (``template``); ``pattern_as_given`` stays the drawing.
+
 Sign of the curvature: kappa(s) > 0 turns left (towards z_hat x T, counter-clockwise seen from above); the grasp
 solvers take the released code's kappa_bar = -kappa L_gb (positive turns right, see ``optimal_grasp``).
 
@@ -111,6 +117,9 @@ class PlannerSettings:
     #: (``closest_rate_limited_curve``), the nearer to the pattern kept; False (the default, CONTRACTS.md section 4:
     #: a deployment starts with the free end at the pattern's first point): held there
     free_start_point: bool = False
+    #: plan for the pattern moved outwards of its bends by the drag that the friction excess at the touch-down point
+    #: predicts (``bend_drag.py``); False: plan for the pattern itself
+    drag_compensation: bool = True
 
     def validate(self):
         if self.method not in METHODS:
@@ -169,6 +178,9 @@ class PlannedTrajectory:
     #: from the free end at the planned curve's first point along its first tangent; None for the intuitive baseline
     #: (it asks no curvature: its grasp is the same whatever the pattern's)
     asked_xy: np.ndarray | None = None
+    #: the processed template the nodes were planned for when drag compensation moved the pattern (``bend_drag.py``),
+    #: else None
+    template: ProcessedPattern | None = None
 
     @property
     def rotation(self):
@@ -182,16 +194,23 @@ class PlannedTrajectory:
     def start_replacement(self, tol_m=1e-4):
         """(length [m] of the pattern's start that the planned curve replaces, the largest distance [m] of the
         planned curve from the pattern there); (0, 0) when the pattern is planned as given."""
-        given = self.pattern_as_given
+        given = self.template if self.template is not None else self.pattern_as_given
         start = self.start_pattern if self.start_pattern is not None else self.pattern
         if given is None or given is start:
             return 0.0, 0.0
-        moved = np.flatnonzero(np.linalg.norm(start.xy - given.xy, axis=1) > tol_m)
-        if moved.size == 0:
+        k = _replaced_nodes(given, start, tol_m)
+        if k == 0:
             return 0.0, 0.0
-        k = int(moved[-1]) + 1
         d = np.linalg.norm(start.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
         return float(given.s[min(k, len(given.s) - 1)]), float(d.max())
+
+    def drag_offset_max(self):
+        """The largest distance [m] of the drag compensation's template from the pattern as drawn (nearest point of
+        the template's nodes); 0 when the pattern was planned as drawn."""
+        if self.template is None:
+            return 0.0
+        t, g = self.template.xy, self.drawn_pattern.xy
+        return float(np.max(np.min(np.linalg.norm(g[:, None, :] - t[None, :, :], axis=2), axis=1)))
 
     def asked_deviation(self):
         """(largest distance [m] of the curve the grasps ask for (``asked_xy``) from the pattern as drawn, at equal
@@ -199,9 +218,20 @@ class PlannedTrajectory:
         planner changes on purpose: the friction-limited start and the curvature rate limit's spread bends."""
         if self.asked_xy is None:
             return 0.0, 0
-        d = np.linalg.norm(self.asked_xy - self.drawn_pattern.xy, axis=1)
+        drawn = self.drawn_pattern
+        asked = self.asked_xy
+        if len(asked) != len(drawn.s):        # planned for a template (drag compensation): its own nodes
+            asked = np.column_stack([np.interp(drawn.s, self.pattern.s, asked[:, k]) for k in range(2)])
+        d = np.linalg.norm(asked - drawn.xy, axis=1)
         i = int(np.argmax(d))
         return float(d[i]), i
+
+
+def _replaced_nodes(given: ProcessedPattern, start: ProcessedPattern, tol_m=1e-4) -> int:
+    """Nodes of ``given`` from its first one up to the last that the friction-limited start ``start`` moved by more
+    than ``tol_m`` (0: unchanged)."""
+    moved = np.flatnonzero(np.linalg.norm(start.xy - given.xy, axis=1) > tol_m)
+    return 0 if moved.size == 0 else int(moved[-1]) + 1
 
 
 def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
@@ -342,20 +372,17 @@ def grasps(inputs, method, progress=None):
     return position, rotvec
 
 
-def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | None = None,
-                    progress=None) -> PlannedTrajectory:
-    """Alg. 4: gripper poses (table frame) that lay ``rod`` along the pattern ``points_xy`` [m]."""
-    settings = settings or PlannerSettings()
-    settings.validate()
-    t0 = time.perf_counter()
-    pattern = given = start_pattern = process_pattern(points_xy, settings.step_m, settings.smoothing_m,
-                                                      settings.end_weight)
+def _planned_curve(given: ProcessedPattern, rod: RodDescription, settings: PlannerSettings, drawn=None):
+    """(the curve the nodes are planned on, its node inputs, the asked curve ``asked_xy``, the pattern with the
+    friction-limited start only) for the processed pattern ``given``; ``drawn``: the pattern as drawn when ``given``
+    is a template (drag compensation), checked first so that an error names a point of the drawing."""
+    pattern = start_pattern = given
     mu = settings.friction or rod.friction or DEFAULT_FRICTION
     if settings.start == 'achievable' and settings.method != 'intuitive':
         from .achievable_start import achievable_start
         # the pattern as drawn is checked first, so that an error names a point of it (the replaced start of a
         # pattern that bends too sharply strays far from it: 15 cm on a digit 3 with a cusp)
-        node_inputs(given, rod, settings)
+        node_inputs(given if drawn is None else drawn, rod, settings)
         pattern = achievable_start(pattern, rod.gravito_bending_length_m, mu, settings.friction_share,
                                    settings.max_abs_kappa_bar)
         start_pattern = pattern
@@ -405,6 +432,35 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
         inputs[:, 2] = kappa_bar
     else:
         asked_xy = None
+    return pattern, inputs, asked_xy, start_pattern
+
+
+def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | None = None,
+                    progress=None) -> PlannedTrajectory:
+    """Alg. 4: gripper poses (table frame) that lay ``rod`` along the pattern ``points_xy`` [m]."""
+    settings = settings or PlannerSettings()
+    settings.validate()
+    t0 = time.perf_counter()
+    given = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
+    pattern, inputs, asked_xy, start_pattern = _planned_curve(given, rod, settings)
+    template = None
+    if settings.drag_compensation and settings.method != 'intuitive':
+        # bend_drag.py: plan once more for the pattern moved outwards of its bends by the predicted drag, beyond
+        # the friction-limited start (its curve is what friction holds near the free end: left as it is)
+        from .bend_drag import drag_offsets
+        mu = settings.friction or rod.friction or DEFAULT_FRICTION
+        kb = np.interp(given.s, pattern.s, inputs[:, 2])
+        k = _replaced_nodes(given, start_pattern)
+        drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu,
+                                   start_m=float(given.s[min(k, len(given.s) - 1)]) if k else 0.0)
+        if np.max(np.abs(drag_offset)) > 0:
+            try:
+                template = process_pattern(given.xy + drag_offset, settings.step_m, 0.0, settings.end_weight)
+                pattern, inputs, asked_xy, start_pattern = _planned_curve(template, rod, settings, drawn=given)
+            except PlanningError:
+                # the moved bend is one the planner refuses (e.g. too tight for the friction so near the free end,
+                # where the drawn one passed): the pattern's own plan stands, reported with template None
+                template = None
     t1 = time.perf_counter()
     qbar, rotvec = grasps(inputs, settings.method, progress)
     t2 = time.perf_counter()
@@ -437,7 +493,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     return PlannedTrajectory(t=t, position=all_p, quaternion=quat, pattern=pattern, inputs=inputs,
                              grasp_position=qbar, grasp_rotvec=rotvec, first_grasp_index=n_lead,
                              method=settings.method, pattern_as_given=given, start_pattern=start_pattern,
-                             asked_xy=asked_xy,
+                             asked_xy=asked_xy, template=template,
                              timings_s={'pattern': t1 - t0, 'grasps': t2 - t1, 'total': time.perf_counter() - t0})
 
 
