@@ -198,11 +198,11 @@ class PlannedTrajectory:
         start = self.start_pattern if self.start_pattern is not None else self.pattern
         if given is None or given is start:
             return 0.0, 0.0
-        k = _replaced_nodes(given, start, tol_m)
+        k, length_m = _replaced_stretch(given, start, tol_m)
         if k == 0:
             return 0.0, 0.0
         d = np.linalg.norm(start.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
-        return float(given.s[min(k, len(given.s) - 1)]), float(d.max())
+        return length_m, float(d.max())
 
     def drag_offset_max(self):
         """The largest distance [m] of the drag compensation's template from the pattern as drawn (nearest point of
@@ -227,11 +227,14 @@ class PlannedTrajectory:
         return float(d[i]), i
 
 
-def _replaced_nodes(given: ProcessedPattern, start: ProcessedPattern, tol_m=1e-4) -> int:
-    """Nodes of ``given`` from its first one up to the last that the friction-limited start ``start`` moved by more
-    than ``tol_m`` (0: unchanged)."""
+def _replaced_stretch(given: ProcessedPattern, start: ProcessedPattern, tol_m=1e-4):
+    """(k, length [m]): the nodes of ``given`` from its first one up to the last that the friction-limited start
+    ``start`` moved by more than ``tol_m``, and the arc length of ``given`` they span; (0, 0.0) when unchanged."""
     moved = np.flatnonzero(np.linalg.norm(start.xy - given.xy, axis=1) > tol_m)
-    return 0 if moved.size == 0 else int(moved[-1]) + 1
+    if moved.size == 0:
+        return 0, 0.0
+    k = int(moved[-1]) + 1
+    return k, float(given.s[min(k, len(given.s) - 1)])
 
 
 def process_pattern(points_xy, step_m=0.005, smoothing_m=0.0005, end_weight=END_WEIGHT) -> ProcessedPattern:
@@ -372,12 +375,12 @@ def grasps(inputs, method, progress=None):
     return position, rotvec
 
 
-def _planned_curve(given: ProcessedPattern, rod: RodDescription, settings: PlannerSettings, drawn=None):
+def _planned_curve(given: ProcessedPattern, rod: RodDescription, settings: PlannerSettings, mu, drawn=None):
     """(the curve the nodes are planned on, its node inputs, the asked curve ``asked_xy``, the pattern with the
-    friction-limited start only) for the processed pattern ``given``; ``drawn``: the pattern as drawn when ``given``
-    is a template (drag compensation), checked first so that an error names a point of the drawing."""
+    friction-limited start only) for the processed pattern ``given`` and the table friction ``mu``; ``drawn``: the
+    pattern as drawn when ``given`` is a template (drag compensation), checked first so that an error names a point
+    of the drawing."""
     pattern = start_pattern = given
-    mu = settings.friction or rod.friction or DEFAULT_FRICTION
     if settings.start == 'achievable' and settings.method != 'intuitive':
         from .achievable_start import achievable_start
         # the pattern as drawn is checked first, so that an error names a point of it (the replaced start of a
@@ -442,21 +445,20 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
     settings.validate()
     t0 = time.perf_counter()
     given = process_pattern(points_xy, settings.step_m, settings.smoothing_m, settings.end_weight)
-    pattern, inputs, asked_xy, start_pattern = _planned_curve(given, rod, settings)
+    mu = settings.friction or rod.friction or DEFAULT_FRICTION
+    pattern, inputs, asked_xy, start_pattern = _planned_curve(given, rod, settings, mu)
     template = None
     if settings.drag_compensation and settings.method != 'intuitive':
         # bend_drag.py: plan once more for the pattern moved outwards of its bends by the predicted drag, beyond
         # the friction-limited start (its curve is what friction holds near the free end: left as it is)
         from .bend_drag import drag_offsets
-        mu = settings.friction or rod.friction or DEFAULT_FRICTION
         kb = np.interp(given.s, pattern.s, inputs[:, 2])
-        k = _replaced_nodes(given, start_pattern)
         drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu,
-                                   start_m=float(given.s[min(k, len(given.s) - 1)]) if k else 0.0)
+                                   start_m=_replaced_stretch(given, start_pattern)[1])
         if np.max(np.abs(drag_offset)) > 0:
             try:
                 template = process_pattern(given.xy + drag_offset, settings.step_m, 0.0, settings.end_weight)
-                pattern, inputs, asked_xy, start_pattern = _planned_curve(template, rod, settings, drawn=given)
+                pattern, inputs, asked_xy, start_pattern = _planned_curve(template, rod, settings, mu, drawn=given)
             except PlanningError:
                 # the moved bend is one the planner refuses (e.g. too tight for the friction so near the free end,
                 # where the drawn one passed): the pattern's own plan stands, reported with template None
