@@ -51,12 +51,13 @@ def cases():
 
 
 def fit_cost(residuals, x, kw):
-    """The closest curve's fit cost |r|^2 at x, its bounds' penalty rows included (the limits handed to the solver
-    as bounds on x since this change; before it they were rows of the residuals)."""
+    """The closest curve's fit cost |r|^2 at x, its limits' penalty rows included (the cap and the rate limit,
+    handed to the solver as limits |D x| <= c since this change; before it the cap was a bound on x and the rate's
+    penalty rows were residuals)."""
     r = residuals(x)
-    if kw.get('bounds') is not None:
-        b, w = kw['bounds']
-        r = np.concatenate([r, w * np.maximum(np.abs(x) - b, 0.0)])
+    if kw.get('limits') is not None:
+        D, c, w = kw['limits']
+        r = np.concatenate([r, w * np.maximum(np.abs(D @ x) - c, 0.0)])
     return float(r @ r)
 
 

@@ -1,5 +1,6 @@
 """Speed of planning a deployment trajectory: a 200-node pattern with the network, in-process and as the whole
-`rod-deploy plan` process (start-up included); medians.
+`rod-deploy plan` process (start-up included), and every shape of the deployment table (the published patterns,
+read in place when ../shared is present, and our own) as drawn, on rod #3 at friction 0.5; medians.
 
     python benchmarks/planning_speed.py [--repeats 20] [--commit-results]
     python benchmarks/planning_speed.py --profile [--commit-results]     # where the default plan's CPU time goes
@@ -44,6 +45,40 @@ PARTS = [('trajectory.py', 'process_pattern', 'smoothing spline and nodes (proce
          ('trajectory.py', 'grasps', 'grasps from the network (grasps)'),
          ('neural_controller.py', 'load_grasp_network', '- reading the weights (load_grasp_network)'),
          ('neural_controller.py', 'predict', '- forward pass (predict)')]
+
+
+def per_pattern(repeats):
+    """[(name, nodes, median wall ms, median CPU ms, Jacobians of the closest curve's fits)] for every shape of
+    deployment_table.py on its rod #3 at friction 0.5, the default settings (the drag compensation fits twice)."""
+    import deployment_table as dt
+    from rod_deploy.planning import curvature_rate
+    rod = rod_description_from_dict(dict(dt.RODS[3], friction=0.5))
+    solve, jacobians = curvature_rate.levenberg_marquardt, [0]
+
+    def counted(residuals, normal_equations, x0, **kw):
+        def counting(x, r):
+            jacobians[0] += 1
+            return normal_equations(x, r)
+        return solve(residuals, counting, x0, **kw)
+
+    rows = []
+    for name, pts in dt.all_patterns().items():
+        plan_trajectory(pts, rod, PlannerSettings())                               # warm
+        jacobians[0] = 0
+        curvature_rate.levenberg_marquardt = counted
+        try:
+            plan = plan_trajectory(pts, rod, PlannerSettings())
+        finally:
+            curvature_rate.levenberg_marquardt = solve
+        times, cpu = [], []
+        for _ in range(repeats):
+            t0, c0 = time.perf_counter(), time.process_time()
+            plan_trajectory(pts, rod, PlannerSettings())
+            times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+        rows.append((name, len(plan.pattern.s), 1000 * float(np.median(times)), 1000 * float(np.median(cpu)),
+                     jacobians[0]))
+    return rows
 
 
 def profile(args, pts, rod, n=20):
@@ -126,6 +161,14 @@ def main():
              'CPU ms: the process\'s CPU time (time.process_time, all threads; for the whole process the child\'s user '
              '+ system time), less sensitive to the load than the wall clock.', '', '| what | nodes | median ms | median CPU ms |', '|---|---|---|---|'] + [
         f'| {a} | {b} | {c:.1f} | {"" if d is None else f"{d:.1f}"} |' for a, b, c, d in rows]
+    shapes = per_pattern(max(3, args.repeats // 4))
+    lines += ['', f'Every shape of the deployment table as drawn (`deployment_table.py`: rod #3, friction 0.5, the '
+              f'default settings; medians of {max(3, args.repeats // 4)} runs; Jacobians: those the closest curve\'s '
+              f'fits formed in one plan):', '', '| shape | nodes | median ms | median CPU ms | Jacobians |',
+              '|---|---|---|---|---|'] + [f'| {a} | {b} | {c:.1f} | {d:.1f} | {e} |' for a, b, c, d, e in shapes]
+    cpu = np.array([r[3] for r in shapes])
+    lines += ['', f'CPU per plan over the {len(shapes)} shapes: median {np.median(cpu):.1f} ms, largest '
+              f'{cpu.max():.1f} ms ({shapes[int(np.argmax(cpu))][0]}).']
     out = results_path(args, 'planning_speed.md')
     out.write_text('\n'.join(lines) + '\n')
     print('\n'.join(lines))

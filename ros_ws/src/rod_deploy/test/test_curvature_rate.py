@@ -206,14 +206,60 @@ def test_levenberg_marquardt_reaches_the_minimum_scipy_reaches():
     def stacked_jac(p):
         return np.vstack([fit_jac(p), np.diag(w * (np.abs(p) > b) * np.sign(p))])
 
-    bounded = levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b, w))
+    bounded = levenberg_marquardt(fit, normal(fit_jac), p0, limits=(np.eye(4), b, w))
     ref = least_squares(stacked, p0, jac=stacked_jac, method='trf', ftol=1e-15, xtol=1e-15, gtol=1e-15).x
     assert abs(ref[0]) > b[0] and abs(ref[3]) > b[3]                        # both penalties active there
     np.testing.assert_allclose(bounded, ref, atol=1e-7)
     assert stacked(bounded) @ stacked(bounded) <= stacked(ref) @ stacked(ref) * (1 + 1e-12)
-    assert np.abs(levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b, w), ftol=1e-3) - ref).max() > 1e-7
-    with pytest.raises(ValueError, match='bounds'):
-        levenberg_marquardt(fit, normal(fit_jac), p0, bounds=(b[:3], w))
+    assert np.abs(levenberg_marquardt(fit, normal(fit_jac), p0, limits=(np.eye(4), b, w), ftol=1e-3) - ref).max() > 1e-7
+    with pytest.raises(ValueError, match='limits'):
+        levenberg_marquardt(fit, normal(fit_jac), p0, limits=(np.eye(4), b[:3], w))
+
+
+def test_levenberg_marquardt_with_coupled_limits_reaches_the_penalised_minimum():
+    """Limits on differences of unknowns (the closest curve's rate limit: |x_i+1 - x_i| <= c) coupled with bounds,
+    many of them active at the minimum: the solver ends where scipy's least_squares on the residuals stacked with
+    the penalty rows ends (run to tight tolerances), in fewer Jacobians than the same problem handed to it with the
+    penalties as residual rows (its active-set step keeps the Gauss-Newton model right across their hinges)."""
+    from scipy.optimize import least_squares
+    t = np.linspace(0.0, 1.0, 120)
+    knots = np.linspace(0.0, 1.0, 25)
+    hat = np.clip(1.0 - np.abs(t[:, None] - knots[None, :]) / (knots[1] - knots[0]), 0.0, None)
+    target = np.sin(9.0 * t) + 0.5 * np.sign(np.sin(4.0 * t))           # steps the rate limit cannot follow
+
+    def fit(x):
+        return np.concatenate([np.tanh(hat @ x) - np.tanh(target), 0.05 * np.diff(x)])
+
+    def fit_jac(x):
+        return np.vstack([(1.0 - np.tanh(hat @ x) ** 2)[:, None] * hat, 0.05 * np.diff(np.eye(len(x)), axis=0)])
+
+    D = np.vstack([np.eye(25), np.diff(np.eye(25), axis=0)])
+    c = np.r_[np.full(25, 1.2), np.full(24, 0.25)]
+    w = 40.0
+
+    def stacked(x):
+        return np.concatenate([fit(x), w * np.maximum(np.abs(D @ x) - c, 0.0)])
+
+    def stacked_jac(x):
+        return np.vstack([fit_jac(x), w * ((np.abs(D @ x) > c) * np.sign(D @ x))[:, None] * D])
+
+    calls = {'limits': 0, 'rows': 0}
+
+    def normal(jac, key):
+        def ne(x, r):
+            calls[key] += 1
+            return jac(x).T @ jac(x), jac(x).T @ r
+        return ne
+
+    x0 = np.zeros(25)
+    ours = levenberg_marquardt(fit, normal(fit_jac, 'limits'), x0, limits=(D, c, w), ftol=1e-13)
+    ref = least_squares(stacked, x0, jac=stacked_jac, method='trf', ftol=1e-15, xtol=1e-15, gtol=1e-15).x
+    assert np.sum(np.abs(D @ ref) > c) >= 5                                  # cap and rate rows active there
+    assert stacked(ours) @ stacked(ours) <= stacked(ref) @ stacked(ref) * (1 + 1e-10)
+    np.testing.assert_allclose(ours, ref, atol=1e-5)
+    as_rows = levenberg_marquardt(stacked, normal(stacked_jac, 'rows'), x0, ftol=1e-13)
+    np.testing.assert_allclose(as_rows, ref, atol=1e-5)
+    assert calls['limits'] < calls['rows']
 
 
 def test_the_fit_rows_normal_equations_by_recurrence_are_the_dense_products():
@@ -246,8 +292,8 @@ def test_the_fit_rows_normal_equations_by_recurrence_are_the_dense_products():
 @pytest.mark.parametrize('free_start_point', [True, False])
 def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypatch, rounded_zigzag,
                                                                           free_start_point):
-    """The closest curve forms J^T J and J^T r without stacking J (the penalty rows analytically): at the start and
-    at the solution of a plan with active rate and cap penalties they match a finite-difference Jacobian of its
+    """The closest curve forms J^T J and J^T r without stacking J (the smoothing rows analytically): at the start and
+    near the solution of a plan with active rate and cap limits they match a finite-difference Jacobian of its
     residuals, with the start point held and fitted (two unknowns after the knots)."""
     from rod_deploy.planning import curvature_rate
     seen = []
@@ -263,14 +309,15 @@ def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypa
     # the last fit: with free_start_point the plan fits the curve held, then free (no drag compensation: it plans twice)
     residuals, normal_equations, x0, x1, kw = seen[-1]
     assert len(seen) == 1 + free_start_point
-    # at the start and near the solution (which sits on the rate limit's hinge, where no finite difference holds)
-    k = len(x0) - 1 - 2 * free_start_point             # knots: rate (k - 1) and smoothing (k - 1) rows after the fit
-    bound, _ = kw['bounds']                             # the cap on the knots: the solver's bounds
-    assert np.any(np.abs(x1) > bound)                   # active at the solution (a penalty)
+    # the limits (the cap on each knot, the rate between neighbours) are the solver's: |D x| <= c, both active at
+    # the solution; the residuals are the fit rows and the smoothing rows (k - 1 after the fit)
+    D, c, _ = kw['limits']
+    k = len(x0) - 1 - 2 * free_start_point
+    active = np.abs(D @ x1) > c
+    assert active[:k].any() and active[k:].any()                      # cap and rate limits active
+    # at the start and near the solution (which sits on the rate limit's hinge)
     for x in (x0, x1 + 1e-3 * np.random.default_rng(0).standard_normal(len(x1))):
         r = residuals(x)
-        n2 = len(r) - 2 * (k - 1)
-        assert np.count_nonzero(r[n2:n2 + k - 1]) > 0                       # rate penalties active
         eps = 1e-7
         J = np.column_stack([(residuals(x + eps * e) - residuals(x - eps * e)) / (2 * eps) for e in np.eye(len(x))])
         A, g = normal_equations(x, residuals(x))

@@ -25,6 +25,7 @@ friction holds there (the planner caps it, ``trajectory.plan_trajectory``).
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 
 #: the limit on |d kappa_bar / d(s / L_gb)| of the planned curvature at table friction 0.5 (benchmarks/grasp_jump.py:
 #: rod #3, 1 -> 0.5 -> 0.35 -> 0.25 -> 0.125 per L_gb; 0.35 the largest gain with none of the paper's 7 worse)
@@ -110,18 +111,28 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     dtheta = np.column_stack([np.ones(n), _cumtrapz(hat, ds) / Lgb])                  # d theta / d(theta0, c)
     w_pen = 10.0 * np.sqrt(n)
 
-    # the fit rows' J^T J and J^T r by a recurrence (closest_curve_kernel); the rate rows are linear in the knots:
-    # their share is formed directly (D^T diag(w) D is tridiagonal) rather than by stacking their rows; the cap is a
-    # bound on each knot, handed to the solver as such. No BLAS call in the loop: OpenBLAS's threads, woken by a
-    # product above its size threshold, spin on the second core after it (the CPU time doubled at load 2.5)
+    # the fit rows' J^T J and J^T r by a recurrence (closest_curve_kernel); the smoothing rows are linear in the
+    # knots: their share is formed directly (D^T D is tridiagonal) rather than by stacking their rows. Both limits,
+    # the cap on each knot and the rate between neighbours, are linear in the knots too: handed to the solver as
+    # limits |D x| <= c (penalty rows it steps onto exactly; as residuals here, each change of which rows are active
+    # broke the Gauss-Newton model: 145 Jacobians on the letter C, 15 now). No BLAS call in the loop: OpenBLAS's
+    # threads, woken by a product above its size threshold, spin on the second core after it (the CPU time doubled
+    # at load 2.5)
     first, settled = column_support(dtheta)
     half_ds = 0.5 * ds / Lgb
     knots = slice(1, 1 + n_knots)                       # the knots' place in the unknowns (theta0 first)
-    rate_weight2, pen2 = CLOSEST_RATE_WEIGHT ** 2, w_pen ** 2
+    rate_weight2 = CLOSEST_RATE_WEIGHT ** 2
     n_free = 2 if free_start_point else 0               # the start point's offset [L_gb], after the knots
-    bound = np.full(1 + n_knots + n_free, np.inf)
-    bound[knots] = cap_knots
+    n_x = 1 + n_knots + n_free
+    cap_rows = sparse.eye(n_knots, n_x, k=1, format='csr')                          # x[knots]
+    rate_rows = (sparse.eye(n_knots - 1, n_x, k=2) - sparse.eye(n_knots - 1, n_x, k=1)).tocsr() / h_bar
+    limits = (sparse.vstack([cap_rows, rate_rows], format='csr'),
+              np.concatenate([cap_knots, np.full(n_knots - 1, max_rate)]), w_pen)
     diagonal, upper = np.arange(n_knots), np.arange(n_knots - 1)
+    main_smoothing = np.zeros(n_knots)
+    main_smoothing[:-1] += rate_weight2 / h_bar ** 2
+    main_smoothing[1:] += rate_weight2 / h_bar ** 2
+    off_smoothing = rate_weight2 / h_bar ** 2
     last = {}                                           # the heading of the last curve integrated (x, theta)
 
     def origin(x):
@@ -136,8 +147,7 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
     def residuals(x):
         xy, _ = curve(x)
         rate = np.diff(x[knots]) / h_bar
-        return np.concatenate([((xy - target) / Lgb).ravel(), w_pen * np.maximum(np.abs(rate) - max_rate, 0.0),
-                               CLOSEST_RATE_WEIGHT * rate])
+        return np.concatenate([((xy - target) / Lgb).ravel(), CLOSEST_RATE_WEIGHT * rate])
 
     def normal_equations(x, r):
         theta = last['theta'] if np.array_equal(last.get('x'), x) else curve(x)[1]
@@ -152,23 +162,19 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
             A = np.block([[A, cross.T], [cross, n * np.eye(2)]])
             g = np.concatenate([g, r_fit.sum(axis=0)])
         rate = np.diff(x[knots]) / h_bar
-        # the rate rows: D^T diag(w) D, D the knots' differences over h_bar
-        w = (pen2 * (np.abs(rate) > max_rate) + rate_weight2) / h_bar ** 2
-        main = np.zeros(n_knots)
-        main[:-1] += w
-        main[1:] += w
+        # the smoothing rows: rate_weight2 D^T D, D the knots' differences over h_bar (tridiagonal)
         Ac = A[knots, knots]                                                  # a view: updates A
-        Ac[diagonal, diagonal] += main
-        Ac[upper, upper + 1] -= w
-        Ac[upper + 1, upper] -= w
-        v = pen2 * np.sign(rate) * np.maximum(np.abs(rate) - max_rate, 0.0) + rate_weight2 * rate
+        Ac[diagonal, diagonal] += main_smoothing
+        Ac[upper, upper + 1] -= off_smoothing
+        Ac[upper + 1, upper] -= off_smoothing
+        v = rate_weight2 * rate
         g[knots] += (np.r_[0.0, v] - np.r_[v, 0.0]) / h_bar                 # D^T v
         return A, g
 
     x0 = np.concatenate([[0.0], np.interp(s_knots, s, np.asarray(kappa0, float) * Lgb), np.zeros(n_free)])
     # ftol 1e-13: on a flat minimum (a cursive e, an outward spiral) 1e-10 left the plan up to 1e-5 m, 1e-5 rad from
     # the minimum's (benchmarks/results/planning_equivalence.md), for 2 % more Jacobians over its 64 fits
-    x = levenberg_marquardt(residuals, normal_equations, x0, bounds=(bound, w_pen), ftol=1e-13)
+    x = levenberg_marquardt(residuals, normal_equations, x0, limits=limits, ftol=1e-13)
     kappa_bar = np.clip(np.interp(s, s_knots, x[knots]), -cap_bar, cap_bar)
     kappa_bar = np.clip(limit_curvature_rate(kappa_bar, float(np.mean(ds)) / Lgb, max_rate), -cap_bar, cap_bar)
     xy, theta = integrate_curvature(s, theta0 + x[0], kappa_bar / Lgb, origin(x))
@@ -176,46 +182,90 @@ def closest_rate_limited_curve(pattern, kappa0, theta0, gravito_bending_length_m
                             kappa=kappa_bar / Lgb)
 
 
-def levenberg_marquardt(residuals, normal_equations, x0, bounds=None, ftol=1e-10, xtol=1e-10, max_iterations=1000):
-    """argmin |residuals(x)|^2 + |w max(|x| - b, 0)|^2 from ``x0``: Levenberg-Marquardt on the normal equations
+#: exact active-set iterations on a step before levenberg_marquardt only adds limit rows (see its step_to)
+EXACT_SET_ITERATIONS = 8
+
+
+def levenberg_marquardt(residuals, normal_equations, x0, limits=None, ftol=1e-10, xtol=1e-10, max_iterations=1000):
+    """argmin |residuals(x)|^2 + |w max(|D x| - c, 0)|^2 from ``x0``: Levenberg-Marquardt on the normal equations
     (Cholesky of J^T J plus Marquardt's damping, scaled by the largest diagonal seen so far). ``normal_equations(x,
     r)`` returns (J^T J, J^T r) at x, r = residuals(x) (the last residuals evaluated were at x when the step was
-    taken, so a caller may reuse what it computed there). ``bounds``: None or (b (p,), w), limits |x_i| <= b_i
-    (inf: none) kept as penalty rows of weight w. They are piecewise linear in x, so each step minimises the
-    Gauss-Newton model with them exactly (an active-set iteration on the step): a step that would cross a bound
-    stops at it, where the model linearised at x overshoots it and is rejected (the closest curve's start, capped
-    knot after knot, took 71 Jacobians on the 200-node spiral that way, 9 now). For the closest curve's few hundred
-    residuals and about a hundred unknowns a step costs a fraction of one of scipy's ``least_squares`` (trf), whose
-    SVD of J per step took 90 % of the planning time (benchmarks/planning_speed.py), and it runs to the minimum
-    (trf with 100 evaluations stopped short of it). Stops when the Gauss-Newton model at x (undamped) promises less
-    than ``ftol`` of the cost, checked after a step that gained less than that (a heavily damped step gains little
-    far from the minimum too: stopping there left the cost 2e-6 above the minimum on some plans), or when a step
-    changes x by less than ``xtol`` (relative), or after ``max_iterations`` Jacobians."""
+    taken, so a caller may reuse what it computed there). ``limits``: None or (D, c, w), D an (m, p) matrix (dense or
+    scipy.sparse), c (m,) >= 0 (inf: none), w >= 0: limits |D_i x| <= c_i kept as penalty rows of weight w (a bound
+    |x_i| <= b_i is a row of the identity). They are piecewise linear in x, so each step minimises the Gauss-Newton
+    model with them exactly (an active-set iteration on the step): a step that would cross a limit stops at it,
+    where the model linearised at x overshoots it and is rejected (the closest curve's start, capped knot after
+    knot, took 71 Jacobians on the 200-node spiral that way, 9 now; its rate limit as residual rows, 145 on the
+    letter C, 15 now). For the closest curve's few hundred residuals and about a hundred unknowns a step costs a
+    fraction of one of scipy's ``least_squares`` (trf), whose SVD of J per step took 90 % of the planning time
+    (benchmarks/planning_speed.py), and it runs to the minimum (trf with 100 evaluations stopped short of it). Stops
+    when the Gauss-Newton model at x (undamped) promises less than ``ftol`` of the cost, checked after a step that
+    gained less than that (a heavily damped step gains little far from the minimum too: stopping there left the cost
+    2e-6 above the minimum on some plans), or when a step changes x by less than ``xtol`` (relative), or after
+    ``max_iterations`` Jacobians."""
     from scipy.linalg import cho_solve
 
     x = np.array(x0, float, copy=True)
-    b, w = bounds if bounds is not None else (np.full(len(x), np.inf), 0.0)
-    b = np.asarray(b, float)
-    if b.shape != x.shape or np.any(b < 0) or not w >= 0:
-        raise ValueError(f'bounds: (b, w) with b of shape {x.shape}, b >= 0 and w >= 0, got {b.shape}, {w}')
+    p = len(x)
+    if limits is None:
+        D, c, w = sparse.coo_matrix((0, p)), np.zeros(0), 0.0
+    else:
+        D, c, w = limits
+        D = sparse.coo_matrix(D)
+        c = np.asarray(c, float)
+        if D.shape != (len(c), p) or np.any(c < 0) or not w >= 0:
+            raise ValueError(f'limits: (D, c, w) with D of shape (m, {p}), c (m,) >= 0 and w >= 0, got D '
+                             f'{D.shape}, c {c.shape}, w {w}')
+    # D's nonzeros, and each row's products of pairs of them (D_i^T D_i), summed by bincount: no BLAS call (see
+    # closest_rate_limited_curve) and no sparse-matrix overhead in the step's loop
+    rows, cols, vals = D.row, D.col, D.data
+    m = len(c)
+    pair_i, pair_j = np.nonzero(rows[:, None] == rows[None, :])
+    pair_row, pair_at, pair_v = rows[pair_i], cols[pair_i] * p + cols[pair_j], vals[pair_i] * vals[pair_j]
+    c_finite = np.where(np.isfinite(c), c, 0.0)
     w2 = float(w) ** 2
+
+    def D_at(v):
+        return np.bincount(rows, weights=vals * v[cols], minlength=m)
+
+    def DT_at(u):
+        return np.bincount(cols, weights=vals * u[rows], minlength=p)
+
+    def DT_diag_D(a):
+        return np.bincount(pair_at, weights=a[pair_row] * pair_v, minlength=p * p).reshape(p, p)
+
+    def over(x):
+        return np.maximum(np.abs(D_at(x)) - c, 0.0)
 
     def objective(x):
         r = residuals(x)
-        over = np.maximum(np.abs(x) - b, 0.0)
-        return r, float(r @ r) + w2 * float(over @ over)
+        o = over(x)
+        return r, float(r @ r) + w2 * float(o @ o)
 
     def step_to(x, A, g, damping):
-        """The step s minimising |r + J s|^2 + s^T diag(damping) s + the bound rows at x + s."""
-        active, sign = np.abs(x) > b, np.sign(x)
-        for _ in range(len(x) + 1):
-            L = np.linalg.cholesky(A + np.diag(damping + w2 * active))
-            step = -cho_solve((L, True), g + w2 * active * (x - sign * np.where(active, b, 0.0)),
+        """The step s minimising |r + J s|^2 + s^T diag(damping) s + the limit rows at x + s: the rows active at x + s
+        found by iterating on them; coupled rows (the rate between neighbours) can make that iteration cycle, so after
+        EXACT_SET_ITERATIONS rows are only added (a model above the true one where an added row is not violated:
+        a shorter step, which the caller accepts only if it lowers the cost)."""
+        Dx = D_at(x)
+        active, sign = np.abs(Dx) > c, np.sign(Dx)
+        H0 = A + np.diag(damping)
+        for iteration in range(EXACT_SET_ITERATIONS + m + 1):
+            a = w2 * active
+            H = H0 + DT_diag_D(a) if active.any() else H0
+            step = -cho_solve((np.linalg.cholesky(H), True), g + DT_at(a * (Dx - sign * c_finite)),
                                check_finite=False)
-            now = np.abs(x + step) > b
-            if np.array_equal(now, active) and np.array_equal(np.sign(x + step)[now], sign[now]):
-                break
-            active, sign = now, np.sign(x + step)
+            Dy = Dx + D_at(step)
+            now = np.abs(Dy) > c
+            if iteration < EXACT_SET_ITERATIONS:
+                if np.array_equal(now, active) and np.array_equal(np.sign(Dy)[now], sign[now]):
+                    break
+                active, sign = now, np.sign(Dy)
+            else:
+                added = now & ~active
+                if not added.any():
+                    break
+                active, sign = active | now, np.where(added, np.sign(Dy), sign)
         return step
 
     def gauss_newton_gain(x, r, cost, A, g, safe):
@@ -224,9 +274,8 @@ def levenberg_marquardt(residuals, normal_equations, x0, bounds=None, ftol=1e-10
             step = step_to(x, A, g, 1e-12 * safe)
         except np.linalg.LinAlgError:
             return np.inf
-        over = np.maximum(np.abs(x + step) - b, 0.0)
-        model = float(r @ r) + 2.0 * float(g @ step) + float(np.einsum('i,ij,j->', step, A, step)) \
-            + w2 * float(over @ over)
+        o = over(x + step)
+        model = float(r @ r) + 2.0 * float(g @ step) + float(np.einsum('i,ij,j->', step, A, step)) + w2 * float(o @ o)
         return cost - model
 
     r, cost = objective(x)
@@ -235,7 +284,8 @@ def levenberg_marquardt(residuals, normal_equations, x0, bounds=None, ftol=1e-10
     small_gain = False
     for _ in range(max_iterations):
         A, g = normal_equations(x, r)
-        scale = np.maximum(scale, np.diag(A) + w2 * (np.abs(x) > b))     # the bound rows active at x count too
+        scale = np.maximum(scale, np.diag(A) + w2 * np.bincount(cols, weights=vals ** 2 * (np.abs(D_at(x)) > c)[rows],
+                                                               minlength=p))     # active limit rows
         safe = np.where(scale > 0, scale, 1.0)
         if small_gain and gauss_newton_gain(x, r, cost, A, g, safe) <= ftol * cost:
             break
