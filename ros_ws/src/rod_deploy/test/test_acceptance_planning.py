@@ -171,3 +171,42 @@ def test_plan_free_start_point_flag_moves_the_free_end_only_when_asked(tmp_path,
     # the processed pattern's first point: the smoothing spline's, within a fraction of a millimetre of the drawn one
     np.testing.assert_allclose(out['held']['free_end_start'], [0.0, 0.0], atol=2e-4)
     assert 1e-3 < out['free']['free_end_moved_m'] < 0.02
+
+
+def test_warm_up_loads_every_compiled_kernel_a_plan_uses(tmp_path, capsys):
+    """``warm_up`` (run by ``rod-deploy plan`` before its plan and by the planner node before it listens) loads the
+    compiled kernels with the argument types a plan calls them with: in a fresh process, a plan after it compiles or
+    loads no further specialisation (so ``planning_time_s`` is the plan's own), while without it the plan loads
+    them itself. And the CLI reports the one-off ``startup_s`` apart."""
+    import subprocess
+    import sys
+    script = '''
+import json, sys, numpy as np
+from rod_deploy.planning import closest_curve_kernel, neural_controller
+from rod_deploy.planning.rod_description import rod_description_from_dict
+from rod_deploy.planning.trajectory import plan_trajectory, warm_up
+kernels = (closest_curve_kernel.fit_normal_equations, neural_controller.dense_layer)
+rod = rod_description_from_dict({'length': 0.89, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
+if sys.argv[1] == 'warm':
+    warm_up(rod)
+before = [len(k.signatures) for k in kernels]
+th = np.linspace(0.0, 3.0, 300)
+plan_trajectory(np.column_stack([0.12 * np.sin(th), 0.12 * (1.0 - np.cos(th))]), rod)
+print(json.dumps({'before': before, 'after': [len(k.signatures) for k in kernels]}))
+'''
+    th = np.linspace(0.0, 3.0, 300)
+    seen = {}
+    for mode in ('warm', 'cold'):
+        out = subprocess.run([sys.executable, '-c', script, mode], capture_output=True, text=True, check=True)
+        seen[mode] = json.loads(out.stdout.strip().splitlines()[-1])
+    assert all(n >= 1 for n in seen['warm']['before']) and seen['warm']['after'] == seen['warm']['before']
+    assert seen['cold']['before'] == [0, 0] and all(n >= 1 for n in seen['cold']['after'])
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
+    np.savetxt(tmp_path / 'c.txt', np.column_stack([0.12 * np.sin(th), 0.12 * (1.0 - np.cos(th))]))
+    for method, warmed in (('nn', True), ('intuitive', False)):
+        assert main(['plan', '--pattern', str(tmp_path / 'c.txt'), '--rod', str(rod), '--out', str(tmp_path / 't.csv'),
+                     '--method', method]) == 0
+        line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert line['planning_time_s'] > 0 and (line['startup_s'] > 0) == warmed
+

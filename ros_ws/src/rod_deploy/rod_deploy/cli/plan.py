@@ -16,7 +16,9 @@ default): the start laid along the curve friction can hold near the free end (``
 rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every node on the pattern itself.
 ``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``). Bends where
 the table cannot hold the touch-down point are planned moved outwards by the drag predicted there
-(``planning/bend_drag.py``; the JSON line's ``drag_compensation_max_offset_m``).
+(``planning/bend_drag.py``; the JSON line's ``drag_compensation_max_offset_m``). The JSON line's
+``planning_time_s`` is this plan's; ``startup_s`` the one-off loading before it (the network's weights, the compiled
+kernels from numba's cache: about 1 s per process, ``planning.trajectory.warm_up``).
 
 ``--refine N`` (off by default: planning stays in milliseconds): simulation-in-the-loop refinement with our DER
 (the declared rod, its file's friction else 0.5; the settings of ``rod-deploy simulate``): N simulations, the
@@ -83,7 +85,7 @@ def run(args) -> int:
     from rod_deploy.planning.neural_controller import OutOfTrainedRange
     from rod_deploy.planning.pattern_input import load_pattern
     from rod_deploy.planning.rod_description import load_rod_description
-    from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
+    from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory, warm_up
     from rod_deploy.planning.trajectory_io import write_trajectory_csv
 
     if args.refine is not None and args.refine < 2:
@@ -101,6 +103,7 @@ def run(args) -> int:
                                    free_start_point=args.free_start_point,
                                    **({'max_kappa_bar_rate': args.max_kappa_bar_rate}
                                       if args.max_kappa_bar_rate is not None else {}))
+        startup_s = warm_up(rod, settings)
         bar = None
         if args.method == 'numeric' and not args.quiet:
             from tqdm import tqdm
@@ -122,7 +125,7 @@ def run(args) -> int:
                'duration_s': round(float(written.t[-1]), 3), 'lead_in_poses': plan.first_grasp_index,
                'ls_bar_range': [round(float(plan.inputs[:, 0].min()), 4), round(float(plan.inputs[:, 0].max()), 4)],
                'max_abs_kappa_bar': round(float(abs(plan.inputs[:, 2]).max()), 4), 'ks_bar': round(rod.ks_bar, 2),
-               'planning_time_s': round(plan.timings_s['total'], 4)}
+               'planning_time_s': round(plan.timings_s['total'], 4), 'startup_s': round(startup_s, 4)}
     if plan.method != 'intuitive':                      # the intuitive baseline follows the pattern as given
         summary['start'] = settings.start
         replaced_m, dev_m = plan.start_replacement()

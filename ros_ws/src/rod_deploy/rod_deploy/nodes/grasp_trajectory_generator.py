@@ -32,7 +32,7 @@ from rclpy.time import Time
 
 from robot_bridge.nodes.common import LatestMessageWorker, declare_parameter, non_negative, positive, run_node
 from rod_deploy.planning.rod_description import RodDescription, load_rod_description, rod_description_from_dict
-from rod_deploy.planning.trajectory import METHODS, STARTS, PlannerSettings, plan_trajectory
+from rod_deploy.planning.trajectory import METHODS, STARTS, PlannerSettings, plan_trajectory, warm_up
 
 LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -66,6 +66,7 @@ class GraspTrajectoryGenerator(Node):
         self.settings = PlannerSettings(method=method, step_m=step, smoothing_m=smoothing, speed_m_s=speed,
                                         start=start)
         self.settings.validate()
+        startup_s = warm_up(self.rod, self.settings)         # the first request is then planned in milliseconds
         self.publisher = self.create_publisher(Path, '/gripper_trajectory', LATCHED)
         self.status = self.create_publisher(DiagnosticArray, '~/status', LATCHED)
         self.published = 0
@@ -73,7 +74,8 @@ class GraspTrajectoryGenerator(Node):
         self._worker = LatestMessageWorker(self._process, 'planner')
         self.subscription = self.create_subscription(Path, '/pattern', self._worker.submit, LATCHED)
         self.get_logger().info(f'waiting for patterns on /pattern (rod {self.rod.length_m:g} m, L_gb '
-                               f'{self.rod.gravito_bending_length_m:g} m, method {method})')
+                               f'{self.rod.gravito_bending_length_m:g} m, method {method}; planner loaded in '
+                               f'{startup_s:.2f} s)')
 
     def _process(self, msg: Path):
         points = np.array([[p.pose.position.x, p.pose.position.y] for p in msg.poses], float).reshape(-1, 2)

@@ -60,7 +60,7 @@ grasp, then follows the pattern. Times: the gripper moves at ``speed_m_s`` and t
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.interpolate import splev, splprep
@@ -497,6 +497,27 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
                              method=settings.method, pattern_as_given=given, start_pattern=start_pattern,
                              asked_xy=asked_xy, template=template,
                              timings_s={'pattern': t1 - t0, 'grasps': t2 - t1, 'total': time.perf_counter() - t0})
+
+
+def warm_up(rod: RodDescription, settings: PlannerSettings | None = None) -> float:
+    """Load once what a process's first plan would (the network's weights, the compiled kernels from numba's cache,
+    lazily imported modules: about 1 s, against tens of milliseconds for a plan) by planning a short bent stroke with
+    the network and ``settings``' other choices; returns the seconds it took. ``rod-deploy plan`` reports it as
+    ``startup_s``, apart from ``planning_time_s``; the planner node does it before it listens. Nothing is warmed for
+    the intuitive baseline (it uses neither)."""
+    settings = settings or PlannerSettings()
+    if settings.method == 'intuitive':
+        return 0.0
+    t0 = time.perf_counter()
+    lgb = rod.gravito_bending_length_m
+    length = min(10.0 * lgb, 0.5 * rod.length_m)
+    th = np.linspace(0.0, length / (4.0 * lgb), 40)                 # radius 4 L_gb: |kappa_bar| 0.25
+    stroke = 4.0 * lgb * np.column_stack([np.sin(th), 1.0 - np.cos(th)])
+    try:
+        plan_trajectory(stroke, rod, replace(settings, method='nn'))
+    except PlanningError:        # a stroke this rod cannot lay (a very short rod): the first plan loads them instead
+        pass
+    return time.perf_counter() - t0
 
 
 def trajectory_times(position, quaternion, speed_m_s, max_angular_rate_rad_s, min_dt_s=1e-3):
