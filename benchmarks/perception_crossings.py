@@ -80,7 +80,13 @@ HISTORY = ['### Before the rules of this round', '',
            'each, unless the chain was short enough for the odd-cluster rule): seeds 1000.. to 10200000.. (616 '
            'scenes) right count 594, within both bars 525, over/under 436 / 3 / 65; 11300000.. (the eighth '
            'round\'s held-out set, 112 scenes) 110/112, 97/112, 72 / 1 / 16; this round\'s held-out set '
-           '12400000.. (run with that pipeline after this round\'s held-out run) 108/112, 88/112, 76 / 1 / 18.', '']
+           '12400000.. (run with that pipeline after this round\'s held-out run) 108/112, 88/112, 76 / 1 / 18.', '',
+           'The development scenes with the ninth round\'s pipeline (main before the tenth round: a small self loop '
+           'whose hole the mask closes traced round its blob\'s centreline contour only, which rounds off the '
+           'loop\'s neck, where the rod crosses itself): seeds 1000.. to 11300000.. (728 scenes) right count 704, '
+           'within both bars 623, over/under 510 / 4 / 79; 12400000.. (the ninth round\'s held-out set, 112 '
+           'scenes) 108/112, 90/112, 76 / 1 / 18; this round\'s held-out set 13500000.. (run with that pipeline '
+           'beside this round\'s held-out run) 106/112, 89/112, 67 / 1 / 18.', '']
 
 
 def _dev_sets(per_kind=None):
