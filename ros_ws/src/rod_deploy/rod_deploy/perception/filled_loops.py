@@ -8,7 +8,10 @@ R + w / 2 (width 2 R + w >= 2 w for any loop at all). Inside the blob the loop's
 iso-distance contour at the rod's half width (d = (w + 1) / 2, the same d as on the rod's own centreline).
 The path is re-traced: the lead-in up to where it reaches that contour, once round the contour from the
 point nearest to both leads (the loop's crossing), in the sense that continues the lead-in's direction and
-arrives along the lead-out's, then the lead-out. Units: pixels, points (row, col).
+arrives along the lead-out's, then the lead-out. That contour rounds off the loop's neck, where the rod
+crosses itself: where the leads, drawn on into the blob, meet (:func:`_neck`), the loop is traced through
+that crossing instead, running straight on from it along the leads' directions to the contour.
+Units: pixels, points (row, col).
 """
 from __future__ import annotations
 
@@ -83,6 +86,9 @@ def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), pas
     lead = max(int(round(w)), 3)
     if a < lead or b > n - 1 - lead or inside[0] or inside[-1]:
         return points                                       # the loop is at a path end: leave it
+    neck = _neck(points, a, b, w, ring)
+    if neck is not None:
+        return neck
     t_in = points[a] - points[a - lead]
     t_out = points[b + lead] - points[b]
     k = int(np.argmin(np.hypot(*(ring - points[a]).T) + np.hypot(*(ring - points[b]).T)))
@@ -97,5 +103,86 @@ def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), pas
         if best is None or score > best[0]:
             best = (score, loop)
     out = np.vstack([points[:a + 1], best[1], points[b:]])
+    out = cl.resample(out, 1.0)
+    return cl.smooth(out, 1.5, False)
+
+
+def _lead_curve(points, end, step, w, fit_factor, reach_factor):
+    """Points (1 px steps) of the parabola (in arc length) fitted to a lead's points from ``fit_factor`` w to
+    w before the blob (``end``: the first (``step`` -1) or last (+1) index in the blob; the skeleton bends
+    into the blob over about a width), extrapolated from w before the blob on towards it for
+    ``reach_factor`` w; None if the lead is shorter. A lead curves on into its loop: a straight line drawn on
+    from its last stretch misses the crossing by pixels."""
+    far, near = end + step * int(round(fit_factor * w)), end + step * int(round(w))
+    if not (0 <= far < len(points) and 0 <= near < len(points)):
+        return None
+    q = points[far:near - step:-step]                    # ordered towards the blob
+    s = cl.arc_length(q)
+    if s[-1] <= 0:
+        return None
+    coef = np.polyfit(s - s[-1], q, 2)                  # (3, 2): row and column as quadratics in s
+    t = np.arange(0.0, reach_factor * w + 1.0, 1.0)
+    return np.stack([np.polyval(coef[:, 0], t), np.polyval(coef[:, 1], t)], axis=1)
+
+
+def _ray_hits(origin, t, ring):
+    """(segment index, distance, point) where the ray ``origin`` + s ``t`` (s > 0) first meets the closed polygon
+    ``ring`` (segment k from ring[k] to ring[k + 1]), or None."""
+    a = ring
+    b = np.roll(ring, -1, axis=0)
+    e = b - a
+    den = t[0] * e[:, 1] - t[1] * e[:, 0]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        r = a - origin
+        s = (r[:, 0] * e[:, 1] - r[:, 1] * e[:, 0]) / den
+        u = (r[:, 0] * t[1] - r[:, 1] * t[0]) / den
+    ok = (np.abs(den) > 1e-12) & (s > 0) & (u >= 0) & (u <= 1)
+    if not ok.any():
+        return None
+    k = int(np.flatnonzero(ok)[np.argmin(s[ok])])
+    return k, float(s[k]), origin + s[k] * t
+
+
+def _neck(points, a, b, w, ring, fit_factor=4.0, min_angle_deg=20.0, max_reach_factor=3.0,
+          max_straight_factor=1.5):
+    """The loop traced from its crossing (the neck): a rod looping over itself crosses its own lead-in where
+    the lead-in and the lead-out, drawn on into the blob (:func:`_lead_curve`), meet (X), and runs on through
+    X (the loop leaves X along the lead-in's direction and arrives along the lead-out's); the blob's centreline
+    contour ``ring`` rounds that corner off. The path: the lead-in up to w before the blob, drawn on to X,
+    on along its tangent at X to where that line meets the ring, round the ring to where the lead-out's tangent
+    line (backwards from X) meets it, X, the lead-out drawn back from X to w past the blob. None (use the ring
+    alone) when the leads are shorter than ``fit_factor`` w, do not meet within ``max_reach_factor`` w, cross
+    at less than ``min_angle_deg``, or the contour lies more than ``max_straight_factor`` w from X along
+    either straight run (a loop whose head is wider than its neck curves away from the straight run)."""
+    c_in = _lead_curve(points, a, -1, w, fit_factor, max_reach_factor)
+    c_out = _lead_curve(points, b, 1, w, fit_factor, max_reach_factor)
+    if c_in is None or c_out is None:
+        return None
+    gap = np.hypot(c_in[:, None, 0] - c_out[None, :, 0], c_in[:, None, 1] - c_out[None, :, 1])
+    i, j = np.unravel_index(int(np.argmin(gap)), gap.shape)
+    if gap[i, j] > 1.5 or i in (0, len(c_in) - 1) or j in (0, len(c_out) - 1):
+        return None                                     # the leads do not cross within reach
+    x = 0.5 * (c_in[i] + c_out[j])
+    t_in = c_in[i + 1] - c_in[i - 1]
+    t_out = c_out[j - 1] - c_out[j + 1]                  # along the path: away from the blob
+    t_in, t_out = t_in / np.hypot(*t_in), t_out / np.hypot(*t_out)
+    if abs(t_in[0] * t_out[1] - t_in[1] * t_out[0]) < np.sin(np.radians(min_angle_deg)):
+        return None
+    hit_in, hit_out = _ray_hits(x, t_in, ring), _ray_hits(x, -t_out, ring)
+    if hit_in is None or hit_out is None or max(hit_in[1], hit_out[1]) > max_straight_factor * w:
+        return None                        # a loop wider than its neck bends away from the straight run
+    (k_in, _, q_in), (k_out, _, q_out) = hit_in, hit_out
+    m = len(ring)
+    # round the ring from q_in in the sense that continues the lead-in's direction
+    step = 1 if np.dot(ring[(k_in + 1) % m] - ring[k_in], t_in) >= 0 else -1
+    if step == 1:
+        arc = ring[(k_in + 1 + np.arange((k_out - k_in) % m)) % m]
+    else:
+        arc = ring[(k_in - np.arange((k_in - k_out) % m)) % m]
+    if len(arc) < 0.25 * m:                # a sliver of the ring: not this loop's shape
+        return None
+    near_in, near_out = a - int(round(w)), b + int(round(w))
+    out = np.vstack([points[:near_in + 1], c_in[1:i], x, q_in, arc, q_out, x, c_out[j - 1:0:-1],
+                     points[near_out:]])
     out = cl.resample(out, 1.0)
     return cl.smooth(out, 1.5, False)
