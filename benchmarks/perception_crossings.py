@@ -186,7 +186,7 @@ def table(rows, name):
                      f"{sum(r['order_undecided'] for r in rs)} |")
     n = len(rows)
     right = sum(r['found'] == r['rods'] for r in rows)
-    lines += ['', f"{name}: right count in {right}/{n} scenes ({100 * right / n:.0f} %); per rod, RMS <= 1 px for "
+    lines += ['', f"{name}: right count in {right}/{n} scenes ({100 * right / n:.1f} %); per rod, RMS <= 1 px for "
               f"{sum(x <= 1.0 for r in rows for x in r['rms'])}/{sum(len(r['rms']) for r in rows)} rods and Eq. 17 "
               f"<= 2 px for {sum(x <= 2.0 for r in rows for x in r['eq17'])}/{sum(len(r['eq17']) for r in rows)}; "
               f"median perception time {np.median([r['ms'] for r in rows]):.1f} ms wall clock, "
