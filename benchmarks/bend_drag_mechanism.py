@@ -13,7 +13,7 @@ and the drag measured in our DER, node by node (``rod_deploy.planning.bend_drag`
    d kappa_bar / d(s / L_gb) of the planned curvature, the capacity mu F_z and the predicted drag (``drag_offsets``
    with gain 1: the excess |D| - mu F_z, smoothed and tapered as the planner does). Per 4 cm stretch the largest
    values; per pattern the correlation of the predicted and measured drag and their least-squares slope; pooled,
-   the slope is ``bend_drag.DRAG_GAIN``.
+   the slope at friction 0.5 is ``bend_drag.DRAG_GAIN``.
 """
 from __future__ import annotations
 
