@@ -36,13 +36,39 @@ def load_case(pattern, method, rod, traj=None):
     return P, (plan.t, plan.position, plan.quaternion, None)
 
 
-def run_elastica(case, rod, friction, sets, every):
+_YES, _NO = ('1', 'true', 'yes', 'on'), ('0', 'false', 'no', 'off')
+
+
+def with_settings(settings, sets):
+    """The dataclass ``settings`` with the ``--set`` overrides {name: text}: a number in the field's type, a yes/no
+    field from 1/true/yes/on or 0/false/no/off (``bool('0')`` would be True); an unknown name, a yes/no text that is
+    neither, or a field of another type (None, a tuple) is an error."""
     import dataclasses
+    fields = {f.name for f in dataclasses.fields(settings)}
+    for name, text in sets.items():
+        if name not in fields:
+            raise SystemExit(f'replay_probe: error: --set {name}: no such setting in {type(settings).__name__} '
+                             f'({", ".join(sorted(fields))})')
+        typ = type(getattr(settings, name))
+        if typ is bool:
+            if text.lower() not in _YES + _NO:
+                raise SystemExit(f'replay_probe: error: --set {name}={text}: a yes/no setting takes 1/0, true/false, '
+                                 'yes/no or on/off')
+            value = text.lower() in _YES
+        elif typ in (int, float, str):
+            try:
+                value = typ(text)
+            except ValueError:
+                raise SystemExit(f'replay_probe: error: --set {name}={text}: not a {typ.__name__}') from None
+        else:
+            raise SystemExit(f'replay_probe: error: --set {name}: a {typ.__name__} setting cannot be given here')
+        settings = dataclasses.replace(settings, **{name: value})
+    return settings
+
+
+def run_elastica(case, rod, friction, sets, every):
     from pyelastica_replay import ElasticaSettings, replay_in_elastica
-    s = ElasticaSettings()
-    for k, v in sets.items():
-        typ = type(getattr(s, k))
-        s = dataclasses.replace(s, **{k: typ(v) if typ is not bool else v in ('1', 'true', 'True')})
+    s = with_settings(ElasticaSettings(), sets)
     normals = []
     if s.friction_law == 'stick':
         # record the stick law's normal force per node at every snapshot: as the law takes it and as the plane
@@ -79,12 +105,8 @@ def run_elastica(case, rod, friction, sets, every):
 
 
 def run_der(case, rod, friction, sets, every):
-    import dataclasses
     import rod_deploy.deployment.simulate as sim
-    s = sim.SimulationSettings(friction=friction, start_xy=case[3])
-    for k, v in sets.items():
-        typ = type(getattr(s, k))
-        s = dataclasses.replace(s, **{k: typ(v)})
+    s = with_settings(sim.SimulationSettings(friction=friction, start_xy=case[3]), sets)
     rec = {'k': 0, 'times': [], 'nodes': [], 'normals': []}
     n_every = int(round(every / s.dt_s))
 
