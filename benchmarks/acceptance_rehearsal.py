@@ -531,6 +531,9 @@ def main():
     ap.add_argument('--elastica', nargs='+', metavar='RUN_DIR',
                     help='replay these runs\' trajectories (out/acceptance/...) in PyElastica and add them to the '
                          'results of the last run (run with .venv-bench/bin/python, PYTHONPATH=ros_ws/src/rod_deploy)')
+    ap.add_argument('--merge-after', metavar='FILE',
+                    help='--elastica: wait for FILE to exist before adding the results (replays started while the '
+                         'rehearsal itself, which rewrites the results, is still running)')
     ap.add_argument('--report-only', action='store_true', help='rewrite the table (and figure) from the last run\'s json')
     add_results_argument(ap)
     args = ap.parse_args()
@@ -544,6 +547,8 @@ def main():
     out = results_path(args, 'acceptance_rehearsal.md')
     if args.elastica or args.report_only:
         new = replay_elastica(args.elastica, log) if args.elastica else []
+        while args.merge_after and not Path(args.merge_after).exists():     # the rehearsal itself still running
+            time.sleep(10)
         # several replay processes may run at once on disjoint runs: each merges its rows into the last run's
         # results under a lock (a run replayed again replaces its row)
         with open(out.with_suffix('.lock'), 'w') as lock:
