@@ -22,10 +22,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def load_case(pattern, method, rod, traj=None):
+def load_case(pattern, method, rod, traj=None, pattern_file=None):
     from deployment_table import all_patterns, published_trajectory
     from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
-    P = all_patterns(pattern)[pattern]
+    if pattern_file:                 # a pattern file (e.g. the acceptance rehearsal's), its trajectory given by --traj
+        from rod_deploy.planning.pattern_input import load_pattern
+        if not traj:
+            raise SystemExit('replay_probe: error: --pattern-file needs --traj (the trajectory to replay)')
+        P = load_pattern(pattern_file)
+    else:
+        P = all_patterns(pattern)[pattern]
     if traj:                         # a saved trajectory (deployment_table.py --save-traj) starting at a hanging pose
         from rod_deploy.planning.trajectory_io import read_trajectory_csv
         return P, (*read_trajectory_csv(traj), None)
@@ -143,6 +149,7 @@ def main():
     ap.add_argument('--friction', default='medium')
     ap.add_argument('--every', type=float, default=1.0, help='snapshot period [simulated s]')
     ap.add_argument('--set', nargs='*', default=[], help='settings overrides name=value')
+    ap.add_argument('--pattern-file', help='score against this pattern file instead of --pattern (needs --traj)')
     ap.add_argument('--traj', help='replay this trajectory CSV (starting at a hanging pose) instead of planning one')
     ap.add_argument('--lead-in-only', action='store_true',
                     help="replay only the trajectory's lead-in (the free end held all along; a short run for the "
@@ -150,7 +157,7 @@ def main():
     ap.add_argument('--out', required=True)
     args = ap.parse_args()
     rod = rod_description_from_dict(RODS[args.rod])
-    P, case = load_case(args.pattern, args.method, rod, args.traj)
+    P, case = load_case(args.pattern, args.method, rod, args.traj, args.pattern_file)
     if args.lead_in_only:
         from rod_deploy.deployment.simulate import replay_schedule
         t, p, q, start = case
