@@ -6,7 +6,7 @@ baseline on every pattern and >= 3x on average.
     python benchmarks/replay_side_by_side.py --runs LABEL=FILE.json ... [--ours-label nn] [--baseline intuitive] \
         [--out-name NAME.md] [--note TEXT] [--commit-results]
 
-LABEL names a column group (e.g. ``rod3 nn``); a file may hold several planners (the label then gets the planner).
+LABEL names a column group (e.g. ``rod3 nn``); a file holding several planners needs ``LABEL=FILE.json@PLANNER``.
 """
 from __future__ import annotations
 
@@ -29,12 +29,19 @@ def read_runs(specs):
     out = {}
     for spec in specs:
         label, _, f = spec.partition('=')
+        f, _, planner = f.partition('@')
         if not f:
-            raise SystemExit(f'replay_side_by_side: error: --runs takes LABEL=FILE.json, got {spec!r}')
+            raise SystemExit(f'replay_side_by_side: error: --runs takes LABEL=FILE.json[@PLANNER], got {spec!r}')
         rows = json.loads(Path(f).read_text())['rows']
+        planners = {r['planner'] for r in rows}
+        if not planner and len(planners) > 1:
+            raise SystemExit(f'replay_side_by_side: error: {f} holds the planners {sorted(planners)}: name one '
+                             '(LABEL=FILE.json@PLANNER)')
         for r in rows:
-            if r['pattern'] not in PATTERNS:
+            if r['pattern'] not in PATTERNS or (planner and r['planner'] != planner):
                 continue
+            if r['pattern'] in out.get(label, {}):
+                raise SystemExit(f'replay_side_by_side: error: {label}: {r["pattern"]} twice')
             out.setdefault(label, {})[r['pattern']] = (r['e_mean_cm'], r.get('ours_e_mean_cm', float('nan')),
                                                        Path(f).name)
     return out
