@@ -86,6 +86,7 @@ class ElasticaSettings:
     slip_velocity_tol_m_s: float = 1e-4   # below this an element is sticking (PyElastica's static friction)
     hang_settle_s: float = 2.0        # hanging at rest before the replay
     settle_s: float = 1.0             # gripper still at the end
+    gripper_speed_m_s: float = 0.01   # the replay's speed cap (our simulator's ``max_gripper_speed_m_s``)
     #: a node lies on the table if z <= h + this (our simulator's readout, ``deployed_shape``; the laid rod ripples by
     #: +-0.1 mm here)
     contact_tolerance_m: float = LAID_HEIGHT_TOLERANCE_M
@@ -297,7 +298,7 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
     from scipy.spatial.transform import Rotation, Slerp
     s = settings or ElasticaSettings()
     wall = time.perf_counter()
-    scheds = [replay_schedule(t, p, q, rod, start) for t, p, q, start in cases]
+    scheds = [replay_schedule(t, p, q, rod, start, s.gripper_speed_m_s) for t, p, q, start in cases]
     L, h = rod.length_m, rod.radius_m
     E, rho = rod_material(rod)
     n_el = max(int(round(L / s.element_length_m)), 4)

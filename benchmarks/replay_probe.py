@@ -22,10 +22,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def load_case(pattern, method, rod, traj=None):
+def load_case(pattern, method, rod, traj=None, pattern_file=None):
     from deployment_table import all_patterns, published_trajectory
     from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
-    P = all_patterns(pattern)[pattern]
+    if pattern_file:                 # a pattern file (e.g. the acceptance rehearsal's), its trajectory given by --traj
+        from rod_deploy.planning.pattern_input import load_pattern
+        if not traj:
+            raise SystemExit('replay_probe: error: --pattern-file needs --traj (the trajectory to replay)')
+        P = load_pattern(pattern_file)
+    else:
+        P = all_patterns(pattern)[pattern]
     if traj:                         # a saved trajectory (deployment_table.py --save-traj) starting at a hanging pose
         from rod_deploy.planning.trajectory_io import read_trajectory_csv
         return P, (*read_trajectory_csv(traj), None)
@@ -36,13 +42,39 @@ def load_case(pattern, method, rod, traj=None):
     return P, (plan.t, plan.position, plan.quaternion, None)
 
 
-def run_elastica(case, rod, friction, sets, every):
+_YES, _NO = ('1', 'true', 'yes', 'on'), ('0', 'false', 'no', 'off')
+
+
+def with_settings(settings, sets):
+    """The dataclass ``settings`` with the ``--set`` overrides {name: text}: a number in the field's type, a yes/no
+    field from 1/true/yes/on or 0/false/no/off (``bool('0')`` would be True); an unknown name, a yes/no text that is
+    neither, or a field of another type (None, a tuple) is an error."""
     import dataclasses
+    fields = {f.name for f in dataclasses.fields(settings)}
+    for name, text in sets.items():
+        if name not in fields:
+            raise SystemExit(f'replay_probe: error: --set {name}: no such setting in {type(settings).__name__} '
+                             f'({", ".join(sorted(fields))})')
+        typ = type(getattr(settings, name))
+        if typ is bool:
+            if text.lower() not in _YES + _NO:
+                raise SystemExit(f'replay_probe: error: --set {name}={text}: a yes/no setting takes 1/0, true/false, '
+                                 'yes/no or on/off')
+            value = text.lower() in _YES
+        elif typ in (int, float, str):
+            try:
+                value = typ(text)
+            except ValueError:
+                raise SystemExit(f'replay_probe: error: --set {name}={text}: not a {typ.__name__}') from None
+        else:
+            raise SystemExit(f'replay_probe: error: --set {name}: a {typ.__name__} setting cannot be given here')
+        settings = dataclasses.replace(settings, **{name: value})
+    return settings
+
+
+def run_elastica(case, rod, friction, sets, every):
     from pyelastica_replay import ElasticaSettings, replay_in_elastica
-    s = ElasticaSettings()
-    for k, v in sets.items():
-        typ = type(getattr(s, k))
-        s = dataclasses.replace(s, **{k: typ(v) if typ is not bool else v in ('1', 'true', 'True')})
+    s = with_settings(ElasticaSettings(), sets)
     normals = []
     if s.friction_law == 'stick':
         # record the stick law's normal force per node at every snapshot: as the law takes it and as the plane
@@ -79,12 +111,8 @@ def run_elastica(case, rod, friction, sets, every):
 
 
 def run_der(case, rod, friction, sets, every):
-    import dataclasses
     import rod_deploy.deployment.simulate as sim
-    s = sim.SimulationSettings(friction=friction, start_xy=case[3])
-    for k, v in sets.items():
-        typ = type(getattr(s, k))
-        s = dataclasses.replace(s, **{k: typ(v)})
+    s = with_settings(sim.SimulationSettings(friction=friction, start_xy=case[3]), sets)
     rec = {'k': 0, 'times': [], 'nodes': [], 'normals': []}
     n_every = int(round(every / s.dt_s))
 
@@ -121,6 +149,7 @@ def main():
     ap.add_argument('--friction', default='medium')
     ap.add_argument('--every', type=float, default=1.0, help='snapshot period [simulated s]')
     ap.add_argument('--set', nargs='*', default=[], help='settings overrides name=value')
+    ap.add_argument('--pattern-file', help='score against this pattern file instead of --pattern (needs --traj)')
     ap.add_argument('--traj', help='replay this trajectory CSV (starting at a hanging pose) instead of planning one')
     ap.add_argument('--lead-in-only', action='store_true',
                     help="replay only the trajectory's lead-in (the free end held all along; a short run for the "
@@ -128,7 +157,7 @@ def main():
     ap.add_argument('--out', required=True)
     args = ap.parse_args()
     rod = rod_description_from_dict(RODS[args.rod])
-    P, case = load_case(args.pattern, args.method, rod, args.traj)
+    P, case = load_case(args.pattern, args.method, rod, args.traj, args.pattern_file)
     if args.lead_in_only:
         from rod_deploy.deployment.simulate import replay_schedule
         t, p, q, start = case
