@@ -126,7 +126,9 @@ def write_table(out, rows, t_all, args):
              'point: ' + ('free' if (args.start_point or ('free' if PlannerSettings().free_start_point else 'fixed'))
                           == 'free' else 'fixed') + ' (PlannerSettings.free_start_point); drag '
              'compensation at bends (PlannerSettings.drag_compensation): '
-             f'{args.drag_compensation or ("on" if PlannerSettings().drag_compensation else "off")}.', '',
+             f'{args.drag_compensation or ("on" if PlannerSettings().drag_compensation else "off")}; friction share '
+             f'of the start (PlannerSettings.friction_share): '
+             f'{args.friction_share if args.friction_share is not None else PlannerSettings().friction_share:g}.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:
@@ -159,6 +161,9 @@ def main():
     ap.add_argument('--drag-compensation', default=None, choices=('on', 'off'),
                     help="the planner's feed-forward against the drag at bends (PlannerSettings.drag_compensation, "
                          "planning/bend_drag.py; default: the planner's)")
+    ap.add_argument('--friction-share', type=float, default=None,
+                    help="share c of the friction the friction-limited start counts on (PlannerSettings.friction_share;"
+                         " default: the planner's; the refusal check counts on min(c, 1))")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
@@ -180,7 +185,8 @@ def main():
     extra = {**({'start': args.start} if args.start else {}),
              **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
              **({'free_start_point': args.start_point == 'free'} if args.start_point else {}),
-             **({'drag_compensation': args.drag_compensation == 'on'} if args.drag_compensation else {})}
+             **({'drag_compensation': args.drag_compensation == 'on'} if args.drag_compensation else {}),
+             **({'friction_share': args.friction_share} if args.friction_share is not None else {})}
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')

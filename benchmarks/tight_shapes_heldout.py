@@ -5,7 +5,7 @@ with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
 
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
         [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] \
-        [--drag-compensation off,on] [--plan-only] [--commit-results]
+        [--drag-compensation off,on] [--friction-shares 1,1.5] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
@@ -131,6 +131,10 @@ def main():
     ap.add_argument('--drag-compensation', default='on',
                     help='on, off or off,on: PlannerSettings.drag_compensation (planning/bend_drag.py), each listed '
                          'one planned and simulated; the row\'s planned curve is marked "+drag" when on')
+    ap.add_argument('--friction-shares', default=None,
+                    help="comma-separated PlannerSettings.friction_share of the friction-limited start (e.g. 1,1.5; "
+                         "default: the planner's), each combined with each planned curve; the row's planned curve is "
+                         "marked \", c X\" when given")
     ap.add_argument('--plan-only', action='store_true', help='plan only (no simulation): a smoke test')
     ap.add_argument('--out-name', default=None)
     add_results_argument(ap)
@@ -145,15 +149,18 @@ def main():
         shapes += (tight_shapes if family == 'tight' else curved_start_shapes)(args.seed, args.shapes)
     start_points = args.start_points.split(',') if args.start_points else [None]
     drags = args.drag_compensation.split(',')
+    shares = [float(c) for c in args.friction_shares.split(',')] if args.friction_shares else [None]
     if any(d not in ('on', 'off') for d in drags):
         raise SystemExit(f'--drag-compensation: on, off or off,on, got {args.drag_compensation!r}')
     simulated = {}
     for name, pts, what in shapes:
-        for pc, sp, drag in ((pc, sp, d) for pc in args.planned_curves.split(',') for sp in start_points
-                             for d in drags):
+        for pc, sp, drag, c in ((pc, sp, d, c) for pc in args.planned_curves.split(',') for sp in start_points
+                                for d in drags for c in shares):
             cpu = time.process_time()
-            extra = {} if sp is None else {'free_start_point': sp == 'free'}
-            label = (pc if sp is None else f'{pc}, {sp} start point') + (' +drag' if drag == 'on' else '')
+            extra = {**({} if sp is None else {'free_start_point': sp == 'free'}),
+                     **({} if c is None else {'friction_share': c})}
+            label = ((pc if sp is None else f'{pc}, {sp} start point') + (' +drag' if drag == 'on' else '')
+                     + ('' if c is None else f', c {c:g}'))
             try:
                 plan = plan_trajectory(pts, rod, PlannerSettings(planned_curve=pc, friction=0.5,
                                                                  drag_compensation=drag == 'on', **extra))

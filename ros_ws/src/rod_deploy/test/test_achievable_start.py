@@ -94,6 +94,21 @@ def test_planner_option_is_the_default_and_leaves_a_straight_start_alone():
         plan_trajectory(pts, ROD, PlannerSettings(start='curved'))
     with pytest.raises(PlanningError, match='friction_share'):
         plan_trajectory(pts, ROD, PlannerSettings(start='achievable', friction_share=0.0))
+    with pytest.raises(PlanningError, match=r'friction_share must be in \(0, 2\], got 2.5'):
+        plan_trajectory(pts, ROD, PlannerSettings(friction_share=2.5))
+
+
+def test_a_share_above_one_lets_the_start_bend_more():
+    # c = 1.5: the start follows the pattern's curvature earlier, beyond what c = 1 allows but within its own bound
+    pattern = process_pattern(arc(0.1, 1.6 * np.pi))
+    one, more = achievable_start(pattern, LGB, MU, 1.0), achievable_start(pattern, LGB, MU, 1.5)
+    kmax = friction_curvature_limit(pattern.s, LGB, MU)
+    assert np.max(np.abs(more.kappa) - kmax) * LGB > 0.02
+    assert np.all(np.abs(more.kappa) <= 1.5 * kmax + 0.01 / LGB)
+    dev = [np.mean(np.linalg.norm(p.xy - pattern.xy, axis=1)) for p in (one, more)]
+    assert dev[1] < 0.8 * dev[0]
+    plan = plan_trajectory(arc(0.1, 1.6 * np.pi), ROD, PlannerSettings(friction_share=2.0))   # accepted
+    assert np.max(np.abs(plan.position[:, :2] - plan_trajectory(arc(0.1, 1.6 * np.pi), ROD).position[:, :2])) > 1e-4
 
 
 def test_cli_plan_start_option(tmp_path, capsys):

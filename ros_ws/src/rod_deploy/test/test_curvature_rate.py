@@ -85,6 +85,16 @@ def test_a_bend_friction_cannot_hold_is_refused_with_the_point():
     plan_trajectory(hook, ROD, PlannerSettings(check_friction=False))
 
 
+def test_a_start_share_above_one_refuses_what_share_one_refuses():
+    # the refusal counts on min(c, 1) of the friction: a 9 cm lead into a 3 cm curl (kappa_bar 1.13, the check's
+    # limit at 9 cm 0.91 with c = 1, 1.56 with c = 2) is refused whatever share the start plans with (counting on
+    # c = 2 there would plan it)
+    for share in (1.0, 1.5, 2.0):
+        with pytest.raises(PlanningError, match='cannot hold'):
+            plan_trajectory(lead_then_curl(0.09, 0.03), ROD, PlannerSettings(friction_share=share))
+    plan_trajectory(lead_then_curl(0.10, 0.03), ROD, PlannerSettings(friction_share=2.0))     # a longer lead holds
+
+
 def test_the_default_rate_scales_with_the_square_root_of_friction():
     # a change d kappa_bar needs a ramp of about L_gb sqrt(8 d kappa_bar / mu): its slope scales with sqrt(mu)
     assert default_max_rate(0.5) == pytest.approx(0.35)

@@ -16,7 +16,8 @@ c): with EI = 2 w L_gb^3 (the contract's L_gb) the rod can hold at most
 
     |kappa(s)| <= kappa_max(s) = c mu s^2 / (8 L_gb^3),    i.e.  |kappa_bar(s)| <= c mu (s / L_gb)^2 / 8,
 
-(c <= 1 the share of the friction the planner counts on; ``PlannerSettings.friction_share``, default 1: the same
+(c the share of the friction the planner counts on, up to 2, the refusal below counting on min(c, 1);
+``PlannerSettings.friction_share``, default 1: the same
 plans as the earlier bound mu s^2 / (4 L_gb^3) with its share 0.5, the version measured best on the full
 deployments; c = 0.5 of the corrected bound made the full letter C worse, 0.34 -> 0.67 cm: its start strays 18 mm
 from the pattern, which costs more than the slip it avoids), and a pattern's curvature kappa_bar needs a straight-ish start of about

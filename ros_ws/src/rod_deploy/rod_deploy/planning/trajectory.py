@@ -75,6 +75,12 @@ STARTS = ('tangent', 'achievable')
 PLANNED_CURVES = ('closest', 'spread')
 #: the table friction the 'achievable' start assumes when neither the settings nor the rod give one (medium)
 DEFAULT_FRICTION = 0.5
+#: the largest ``PlannerSettings.friction_share`` the start may count on (the bound is an estimate: the simulated rod
+#: lays kappa_bar 0.48 at the letter C's start where c = 1 allows 0.39, benchmarks/results/free_end_laying.md)
+MAX_FRICTION_SHARE = 2.0
+#: the share the refusal (check_friction_holds) counts on at most, whatever the start's: a plan the rod cannot hold
+#: drags the laid part by centimetres (HOLD_FACTOR is measured with it)
+REFUSAL_FRICTION_SHARE = 1.0
 #: weight in the smoothing spline of the pattern points within END_ZONE_M of either end (the others: 1)
 END_WEIGHT, END_ZONE_M = 30.0, 0.01
 #: the gripper frame in the grasp solver's rotation R: columns (R e_z, R e_y, -R e_x)
@@ -99,7 +105,9 @@ class PlannerSettings:
     start: str = 'achievable'             # 'achievable' (friction-limited, achievable_start.py) or 'tangent' (Alg. 4)
     friction: float | None = None         # table friction for the 'achievable' start; None: the rod's, else 0.5
     #: share c of the friction the 'achievable' start counts on (of the pure-moment capacity mu w s^2 / 4; c = 1
-    #: plans exactly what c = 0.5 of the earlier, twice too large bound did: measured best, see achievable_start.py)
+    #: plans exactly what c = 0.5 of the earlier, twice too large bound did: measured best, see achievable_start.py;
+    #: up to MAX_FRICTION_SHARE, the bound being an estimate). The refusal (check_friction_holds) counts on
+    #: min(c, 1) whatever c the start uses (REFUSAL_FRICTION_SHARE)
     friction_share: float = 1.0
     #: the largest |d kappa_bar / d(s / L_gb)| asked of the grasp solver (curvature_rate.py); None: the default for
     #: the table friction (0.35 at 0.5, scaled by sqrt(friction / 0.5)); inf: the pattern's own curvature (Alg. 4)
@@ -130,8 +138,8 @@ class PlannerSettings:
             raise PlanningError(f'unknown planned_curve {self.planned_curve!r} (one of {", ".join(PLANNED_CURVES)})')
         if self.friction is not None and not (np.isfinite(self.friction) and self.friction > 0):
             raise PlanningError(f'friction must be positive, got {self.friction}')
-        if not (np.isfinite(self.friction_share) and 0 < self.friction_share <= 1):
-            raise PlanningError(f'friction_share must be in (0, 1], got {self.friction_share}')
+        if not (np.isfinite(self.friction_share) and 0 < self.friction_share <= MAX_FRICTION_SHARE):
+            raise PlanningError(f'friction_share must be in (0, {MAX_FRICTION_SHARE:g}], got {self.friction_share}')
         for name in ('step_m', 'speed_m_s', 'max_angular_rate_rad_s', 'min_ls_bar', 'max_abs_kappa_bar', 'end_weight'):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -391,7 +399,7 @@ def _planned_curve(given: ProcessedPattern, rod: RodDescription, settings: Plann
         start_pattern = pattern
     inputs = node_inputs(pattern, rod, settings)
     if settings.check_friction and settings.start == 'achievable' and settings.method != 'intuitive':
-        check_friction_holds(pattern, rod, mu, settings.friction_share)
+        check_friction_holds(pattern, rod, mu, min(settings.friction_share, REFUSAL_FRICTION_SHARE))
     if settings.method != 'intuitive':
         Lgb = rod.gravito_bending_length_m
         rate = settings.max_kappa_bar_rate if settings.max_kappa_bar_rate is not None else default_max_rate(mu)
