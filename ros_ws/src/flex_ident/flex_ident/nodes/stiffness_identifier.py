@@ -296,11 +296,17 @@ class StiffnessIdentifier(Node):
         self._publish_status(DiagnosticStatus.OK, 'idle', values)
 
     def _publish_status(self, level: bytes, message: str, values: dict):
-        status = DiagnosticStatus(level=level, name=self.get_fully_qualified_name(), message=message,
-                                  hardware_id='', values=[KeyValue(key=str(k), value=str(v))
-                                                          for k, v in values.items()])
+        if self._closed:
+            return
+        try:
+            name, stamp = self.get_fully_qualified_name(), self.get_clock().now().to_msg()
+        except Exception as exc:   # noqa: BLE001 - the node destroyed under a finishing job (its handle is gone)
+            self.get_logger().debug(f'status not published, the node is shutting down: {exc}')
+            return
+        status = DiagnosticStatus(level=level, name=name, message=message, hardware_id='',
+                                  values=[KeyValue(key=str(k), value=str(v)) for k, v in values.items()])
         msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = stamp
         self._publish(self.status_pub, msg)
 
     def _publish(self, publisher, msg):
@@ -310,6 +316,10 @@ class StiffnessIdentifier(Node):
             publisher.publish(msg)
         except Exception as exc:   # noqa: BLE001 - e.g. the context shut down under a finishing job
             self.get_logger().debug(f'could not publish on {publisher.topic_name}: {exc}')
+
+    def destroy_node(self):
+        self.close()          # first, so that a job finishing in its thread publishes nothing on a destroyed node
+        return super().destroy_node()
 
     def close(self):
         """Stop accepting requests; a running job is left to finish in its daemon thread (it cannot be cancelled)."""
