@@ -18,7 +18,7 @@ rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every n
 the table cannot hold the touch-down point are planned moved outwards by the drag predicted there
 (``planning/bend_drag.py``; the JSON line's ``drag_compensation_max_offset_m``). The JSON line's
 ``planning_time_s`` is this plan's; ``startup_s`` the one-off loading before it (the network's weights, the compiled
-kernels from numba's cache: about 1 s per process, ``planning.trajectory.warm_up``).
+kernels from numba's cache: 0.4-0.6 s per process here, ``planning.trajectory.warm_up``).
 
 ``--refine N`` (off by default: planning stays in milliseconds): simulation-in-the-loop refinement with our DER
 (the declared rod, its file's friction else 0.5; the settings of ``rod-deploy simulate``): N simulations, the

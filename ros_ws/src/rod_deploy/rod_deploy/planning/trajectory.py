@@ -509,8 +509,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
 
 def warm_up(rod: RodDescription, settings: PlannerSettings | None = None) -> float:
     """Load once what a process's first plan would (the network's weights, the compiled kernels from numba's cache,
-    lazily imported modules: about 1 s, against tens of milliseconds for a plan) by planning a short bent stroke with
-    the network and ``settings``' other choices; returns the seconds it took. ``rod-deploy plan`` reports it as
+    lazily imported modules: 0.4-0.6 s here, against tens of milliseconds for a plan) by planning a short bent
+    stroke with the network and ``settings``' other choices; returns the seconds it took. ``rod-deploy plan`` reports it as
     ``startup_s``, apart from ``planning_time_s``; the planner node does it before it listens. Nothing is warmed for
     the intuitive baseline (it uses neither)."""
     settings = settings or PlannerSettings()
