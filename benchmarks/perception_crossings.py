@@ -86,7 +86,14 @@ HISTORY = ['### Before the rules of this round', '',
            'loop\'s neck, where the rod crosses itself): seeds 1000.. to 11300000.. (728 scenes) right count 704, '
            'within both bars 623, over/under 510 / 4 / 79; 12400000.. (the ninth round\'s held-out set, 112 '
            'scenes) 108/112, 90/112, 76 / 1 / 18; this round\'s held-out set 13500000.. (run with that pipeline '
-           'beside this round\'s held-out run) 106/112, 89/112, 67 / 1 / 18.', '']
+           'beside this round\'s held-out run) 106/112, 89/112, 67 / 1 / 18.', '',
+           'The development scenes with the tenth round\'s pipeline (main before the eleventh round: a branch in the '
+           'shadow of the strand above scored as another colour at a crossing when 12 a*b* units off its partner, '
+           'one hue or not; a dead-end branch of the skeleton into a filled loop\'s blob kept when longer than a '
+           'plain spur): seeds 1000.. to 12400000.. (840 scenes) right count 812, within both bars 718, '
+           'over/under 586 / 5 / 97; 13500000.. (the tenth round\'s held-out set, 112 scenes) 106/112, 89/112, '
+           '67 / 1 / 18; this round\'s held-out set 14600000.. (run with that pipeline after this round\'s '
+           'held-out run) 108/112, 86/112, 81 / 1 / 8.', '']
 
 
 def _dev_sets(per_kind=None):
