@@ -7,6 +7,7 @@ from rod_deploy.perception.crossing_order import occlusion_edge_strength
 from rod_deploy.perception.crossing_scenes import (TrueCrossing, crossing_scene, curve_crossings, knot_curve,
                                                    render_rod_scene)
 from rod_deploy.perception.evaluation import arc_length_error, centreline_rms
+from rod_deploy.perception.centreline import arc_length
 from rod_deploy.perception.path_io import deployed_order
 from rod_deploy.perception.pipeline import perceive
 from rod_deploy.perception.traversal import TracedObject, drop_shadow_strands, join_gaps
@@ -456,3 +457,26 @@ def test_overlaps_along_a_chain_of_two_rods_count_the_crossings(profile, crossin
     points = np.stack([np.arange(len(widths), dtype=float), np.zeros(len(widths))], axis=1)
     width_at = lambda p: widths[p[:, 0].astype(int)] + 1.0  # noqa: E731  (the mask's 2 d, one more than the width)
     assert overlaps_along(points, [8.0, 8.0, 8.0, 8.0], width_at) == crossings
+
+
+def test_a_rod_with_a_filled_loop_and_a_spur_into_it_is_one_object():
+    """A generated self-loop scene (development seed 11300011: a grey rod 12.6 px wide whose loop the mask
+    fills): thinning left a dead-end branch into the blob's bulge, which took the lead-in's place at the
+    junction, so the rod came back in two pieces (2 objects). Without it the path runs through the blob
+    and the loop is re-traced round it."""
+    sc = crossing_scene('self_loop', 11_300_011)
+    res = perceive(sc.image)
+    assert len(res.objects) == 1
+    assert centreline_rms(res.objects[0].points, sc.curves[0])['rms_px'] <= 1.0
+
+
+def test_a_loop_in_the_shadow_of_its_own_crossing_is_not_cut_off():
+    """A generated letter 'e' (development seed 10200013: a magenta rod): at the loop's crossing the lower
+    strand lies in the upper one's shadow, 16 a*b* units off its lit colour; scored as a colour change, the
+    pairing closed the loop on itself and sent the lead-in straight on to the tail (a closed object and an
+    open one)."""
+    sc = crossing_scene('letter_e', 10_200_013)
+    res = perceive(sc.image)
+    assert not any(o.closed for o in res.objects)
+    best = min(res.objects, key=lambda o: centreline_rms(o.points, sc.curves[0])['rms_px'])
+    assert best.length_px() > 0.85 * arc_length(sc.curves[0])[-1]

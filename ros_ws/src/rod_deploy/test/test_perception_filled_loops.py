@@ -5,7 +5,8 @@ import numpy as np
 from rod_deploy.perception.centreline import arc_length, resample
 from rod_deploy.perception.crossing_scenes import curve_crossings, loop_curve
 from rod_deploy.perception.evaluation import arc_length_error, centreline_rms
-from rod_deploy.perception.filled_loops import trace_filled_loop
+from rod_deploy.perception.filled_loops import prune_blob_spurs, trace_filled_loop
+from rod_deploy.perception.skeleton_graph import build_skeleton_graph, dissolve_pass_through_junctions
 
 
 def _loop_scene(width=9, radius=10.0):
@@ -90,3 +91,35 @@ def test_a_loop_head_wider_than_its_neck_keeps_the_contour():
     out = trace_filled_loop(path, dist)
     assert centreline_rms(out, truth)['rms_px'] < 1.2
 
+
+
+def _blob_with_spur(spur_px, blob_radius=14, width=9):
+    """A rod along row 100 through a filled loop's blob (a disc at (100, 100)) and the skeleton thinning
+    leaves there: the rod's chain with a branch ``spur_px`` long from the blob's middle towards its bulge;
+    the graph, and the mask's distance map (no disc when ``blob_radius`` is 0)."""
+    mask = np.zeros((200, 200), np.uint8)
+    mask[100 - width // 2:100 + width // 2 + 1, 20:181] = 1
+    if blob_radius:
+        cv2.circle(mask, (100, 100), blob_radius, 1, -1)
+    skeleton = np.zeros((200, 200), bool)
+    skeleton[100, 20:181] = True
+    skeleton[101:101 + spur_px, 100] = True
+    return build_skeleton_graph(skeleton), cv2.distanceTransform(mask, cv2.DIST_L2, 3)
+
+
+def test_a_dead_end_branch_inside_a_filled_loop_is_pruned():
+    # self_loop 11300011: a 9 px (half resolution) branch into the blob's bulge took the lead-in's place at
+    # the junction, and the rod came out in two pieces
+    graph, dist = _blob_with_spur(12)
+    assert len(graph.live_edges()) == 3
+    assert prune_blob_spurs(graph, dist, 9.0, 1.2 * 9.0 + 2.0) == 1
+    dissolve_pass_through_junctions(graph)
+    (_, e), = graph.live_edges()
+    assert e.length_px() > 159
+
+
+def test_branches_that_leave_the_blob_or_hang_off_a_plain_rod_stay():
+    graph, dist = _blob_with_spur(40)                  # leaves the blob: a rod's end
+    assert prune_blob_spurs(graph, dist, 9.0, 1.2 * 9.0 + 2.0) == 0
+    graph, dist = _blob_with_spur(12, blob_radius=0)   # a rod end lying on another rod of the same width
+    assert prune_blob_spurs(graph, dist, 9.0, 1.2 * 9.0 + 2.0) == 0

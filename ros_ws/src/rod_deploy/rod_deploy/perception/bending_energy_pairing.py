@@ -17,9 +17,10 @@ phi_1 the turn from t_i onto the chord a_j - a_i, phi_2 the turn from the chord 
 all branches with the least total energy is chosen (every perfect matching is enumerated for up to eight
 branches; with an odd count one branch is left to end at the crossing, e.g. a rod end touching another
 rod). Where colour is known, joining two branches whose colours clearly differ (CIELAB a*b* distance above
-``min_colour_separation``) costs ``colour_penalty`` more, about a 150-degree turn: rods do not change
-colour in a crossing, while the skeleton of a shallow or tangential crossing can make the wrong pairing the
-straighter one. Joining the two ends of one chain into a closed loop costs ``loop_penalty`` more: where a
+``min_colour_separation``, unless they are one hue, the paler one at least 0.6 times as chromatic: one paint
+in light and the shadow of the strand above, :func:`paints_differ`) costs ``colour_penalty`` more, about a
+150-degree turn: rods do not change colour in a crossing, while the skeleton of a shallow or tangential
+crossing can make the wrong pairing the straighter one. Joining the two ends of one chain into a closed loop costs ``loop_penalty`` more: where a
 stroke ends tangentially on itself (a letter b, a loop closing onto its lead-in) both pairings are
 straight, and the open curve is the likelier reading. Across a chain of two rods side by side the rods'
 sides decide instead (:func:`same_side_pairing`): through a long lens every pairing is about as straight.
@@ -44,6 +45,8 @@ from rod_deploy.perception.skeleton_graph import JUNCTION, SkeletonGraph
 MAX_TURN_RAD = np.pi - 1e-3
 MIN_ARM_FRACTION = 0.25  # a shallow crossing's four arms are at least this fraction of its overlap long
 SPLAY_FRACTION = 0.2      # branch anchors of a shallow crossing at least this fraction of its overlap out
+SHADE_HUE_DEG = 8.0       # two chromatic colours within this many degrees of hue ...
+SHADE_CHROMA = 0.6        # ... and this fraction of chroma: one paint in light and shade (paints_differ)
 
 
 @dataclass
@@ -468,6 +471,24 @@ def colours_differ(ci, cj, min_separation: float) -> bool:
     return ci is not None and cj is not None and float(np.linalg.norm(ci - cj)) > min_separation
 
 
+def paints_differ(ci, cj, min_separation: float, max_shade_hue_deg: float = SHADE_HUE_DEG,
+                  min_shade_chroma: float = SHADE_CHROMA) -> bool:
+    """:func:`colours_differ`, unless the two CIELAB (a*, b*) colours are one paint in light and shade:
+    both chromatic (chroma above ``min_separation``), hues within ``max_shade_hue_deg``, the paler one with
+    at least ``min_shade_chroma`` of the other's chroma. A shadow (of the rod above, next to a crossing)
+    scales a rod's RGB by a factor, which scales a*b* about by its cube root, at the same hue: a factor down
+    to 1/4 (half in a shadow on the rod's shaded side) keeps 0.6 of the chroma (a magenta rod: (43, -37)
+    lit, (31, -27) in the shadow of its own loop, 16 apart); paler still is the table or a washed-out
+    speck, not the rod."""
+    if not colours_differ(ci, cj, min_separation):
+        return False
+    ri, rj = float(np.hypot(ci[0], ci[1])), float(np.hypot(cj[0], cj[1]))
+    if min(ri, rj) <= max(min_separation, min_shade_chroma * max(ri, rj)):
+        return True
+    cos_hue = float(ci[0] * cj[0] + ci[1] * cj[1]) / (ri * rj)
+    return cos_hue < math.cos(math.radians(max_shade_hue_deg))
+
+
 def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penalty: float = 4.0,
                            min_colour_separation: float = 12.0, loop_penalty: float = 0.5):
     """Pairs (i, j) of branch indices with the least total energy (bending plus colour penalty), and that
@@ -479,7 +500,7 @@ def minimal_energy_pairing(branches: list, max_exhaustive: int = 8, colour_penal
     geometry = [_geometry(b) for b in branches]
     for i, j in combinations(range(n), 2):
         e = _pair_energy(geometry[i], geometry[j])
-        if colours_differ(branches[i].colour, branches[j].colour, min_colour_separation):
+        if paints_differ(branches[i].colour, branches[j].colour, min_colour_separation):
             e += colour_penalty
         if branches[i].edge == branches[j].edge:
             e += loop_penalty

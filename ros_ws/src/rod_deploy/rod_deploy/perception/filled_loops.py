@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from rod_deploy.perception import centreline as cl
+from rod_deploy.perception.skeleton_graph import END, JUNCTION, remove_node_if_isolated
 
 MIN_BLOB_FACTOR = 2.0    # a filled loop: the mask at least this many rod widths wide on the path
 MARGIN_PX = 1.5          # the contour level above the rod's own centreline distance (keeps the leads out)
@@ -105,6 +106,46 @@ def trace_filled_loop(points: np.ndarray, dist: np.ndarray, other_points=(), pas
     out = np.vstack([points[:a + 1], best[1], points[b:]])
     out = cl.resample(out, 1.0)
     return cl.smooth(out, 1.5, False)
+
+
+def prune_blob_spurs(graph, dist: np.ndarray, width_px: float, spur_px: float,
+                     min_blob_factor: float = MIN_BLOB_FACTOR) -> int:
+    """Remove the dead-end branches of the skeleton that end inside a filled loop's blob: a branch from a
+    junction where the mask is at least ``min_blob_factor`` rod widths wide (2 d - 1, ``dist`` the mask's
+    distance map at the graph's scale; both ``width_px``, the typical rod width there, and the rod's own
+    width, 2 d - 1 along the junction's other branches from 2 d to 6 d out, past the blob) to a free end less than the
+    junction's own d + ``spur_px`` away along it. Thinning leaves such a branch towards the blob's bulge
+    (the far side of the loop); it is as long as the blob is wide, so the plain spur rule (``spur_px``)
+    keeps it, and at its junction it takes the lead-out's or lead-in's place (the straighter pairing),
+    cutting the rod in two at the loop. A rod's own end leaves the blob (more than d + ``spur_px``
+    long); at a junction on a rod's path, or at a crossing of two rods (d below w), nothing changes. A
+    junction keeps at least two branches. Returns the number of branches removed."""
+    removed = 0
+    for eid, e in graph.live_edges():
+        if e.closed or e.u == e.v:
+            continue
+        ku, kv = graph.nodes[e.u].kind, graph.nodes[e.v].kind
+        if (ku == END) == (kv == END) or JUNCTION not in (ku, kv):
+            continue
+        junction, end = (e.v, e.u) if ku == END else (e.u, e.v)
+        node = graph.nodes[junction]
+        if len(node.edges) < 3:
+            continue
+        d = float(cl.lookup(dist, node.position[None, :])[0])
+        if 2.0 * d - 1.0 < min_blob_factor * width_px or e.length_px() >= d + spur_px:
+            continue
+        # the rod's own width: on the junction's other branches, past the junction's blob
+        skip = int(np.ceil(2.0 * d))
+        arms = [graph.branch_points(x, side)[skip:skip + int(np.ceil(4.0 * d))] for x, side in node.edges
+                if x != eid]
+        arms = [a for a in arms if len(a)]
+        if not arms or 2.0 * d - 1.0 < min_blob_factor * (2.0 * float(cl._median(cl.lookup(dist, np.vstack(arms))))
+                                                          - 1.0):
+            continue
+        graph.remove_edge(eid)
+        remove_node_if_isolated(graph, end)
+        removed += 1
+    return removed
 
 
 def _lead_curve(points, end, step, w, fit_factor, reach_factor):

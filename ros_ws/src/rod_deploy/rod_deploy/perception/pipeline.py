@@ -11,7 +11,8 @@ sub-pixel refinement.
     ``spur_factor`` w + 2 px pruned, specks shorter than ``min_length_factor`` w dropped, and so are
     objects whose centreline evidence has a median below the segmentation threshold (texture blobs that
     only the local edge rule pulled into the mask), and so are loops from a junction back to itself no
-    longer than a spur (pinholes in the mask);
+    longer than a spur (pinholes in the mask) and dead-end branches inside a filled loop's blob
+    (:func:`~.filled_loops.prune_blob_spurs`);
  3. crossings (:mod:`.bending_energy_pairing`): junctions closer than ``merge_factor`` w form one
     cluster, and clusters with an odd number of branches are joined to the nearest other odd one within
     ``y_merge_factor`` w along the skeleton (a shallow X split into two Ys, three rods crossing near one
@@ -19,7 +20,8 @@ sub-pixel refinement.
     (a shallow crossing) or by a chain as wide as both rods together (two rods side by side between two
     crossings, :func:`~.bending_energy_pairing.find_crossings`);
     branches paired by minimal bending energy (anchors ``skip_factor`` w + 2 px out, tangents over
-    1.5 w), with a penalty for joining branches of clearly different colour (``min_colour_separation``);
+    1.5 w), with a penalty for joining branches of clearly different colour (``min_colour_separation``;
+    one hue at 0.6-1 times the chroma is one paint in light and shade, :func:`~.bending_energy_pairing.paints_differ`);
     across a chain of two rods side by side that narrows to one rod's width an even number of times (the
     rods cross at both Ys, or at neither) each branch is paired with the one on its side of the chain;
  4. traversal (:mod:`.traversal`): one ordered path per object, from an end (loops: closed paths); an
@@ -55,7 +57,7 @@ from numba import njit
 from rod_deploy.perception import centreline as cl
 from rod_deploy.perception.bending_energy_pairing import find_crossings, pair_crossings
 from rod_deploy.perception.crossing_order import colour_sampler, decide_crossings
-from rod_deploy.perception.filled_loops import trace_filled_loop
+from rod_deploy.perception.filled_loops import prune_blob_spurs, trace_filled_loop
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
                                                 estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
@@ -173,6 +175,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     min_length = max(config.min_length_factor * w, 8.0)
     remove_small_parts(graph, min_length / f)
     prune_spurs(graph, config.spur_factor * ws + 2.0)
+    prune_blob_spurs(graph, skel_dist, ws, config.spur_factor * ws + 2.0)
     dissolve_pass_through_junctions(graph)
     remove_small_parts(graph, min_length / f)
     crossings = find_crossings(graph, config.merge_factor * ws, config.y_merge_factor * ws,
