@@ -730,8 +730,8 @@ def write_report(out, rows, errs, total_s, elastica=None, shape_set='original'):
                      f'{"; ".join(e.get("expected_words", [])).replace("|", "/")} | '
                      f'{e["message"].replace("|", "/")[:400]} |')
     try:
-        plot_overview(out.with_suffix('.png'), rows)
-        lines.insert(4, f'Overview of the simulated runs: `{out.with_suffix(".png").name}`.\n')
+        if plot_overview(out.with_suffix('.png'), rows):
+            lines.insert(4, f'Overview of the simulated runs: `{out.with_suffix(".png").name}`.\n')
     except Exception as e:                       # noqa: BLE001 - the table matters more than the figure
         print(f'no overview plot: {e}', file=sys.stderr)
     out.write_text('\n'.join(lines) + '\n')
@@ -741,13 +741,14 @@ def write_report(out, rows, errs, total_s, elastica=None, shape_set='original'):
 
 
 def plot_overview(path, rows):
-    """One panel per simulated run: the pattern, our DER's deployed curve (and PyElastica's when replayed)."""
+    """One panel per simulated run: the pattern, our DER's deployed curve (and PyElastica's when replayed); False
+    (nothing written) without a simulated run."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     sims = [r for r in rows if r.get('eval')]
     if not sims:
-        return
+        return False
     cols = 6
     fig, axs = plt.subplots((len(sims) + cols - 1) // cols, cols, figsize=(3.2 * cols, 3.0 * ((len(sims) + cols - 1)
                                                                                           // cols)), squeeze=False)
@@ -772,6 +773,7 @@ def plot_overview(path, rows):
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
+    return True
 
 
 def replay_elastica(run_dirs, log, element_m=None, dt_s=None):
