@@ -657,11 +657,14 @@ def _largest_step(row, plan):
     return 100 * float(np.linalg.norm(np.diff(p, axis=0), axis=1).max())
 
 
-def write_report(out, rows, errs, total_s, elastica=None, shape_set='original'):
+def write_report(out, rows, errs, total_s, elastica=None, shape_set='original', load_end=None):
+    """The results table (``out``, .md), its .json and figure; ``load_end``: the 1-min load average when the runs
+    ended (default now; a rewrite after replays or added runs keeps the first run's)."""
+    load_end = os.getloadavg()[0] if load_end is None else load_end
     lines = ['# Acceptance rehearsal (issue #10), `python benchmarks/acceptance_rehearsal.py'
              + (' --set fresh`' if shape_set == 'fresh' else '`'), '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (load average '
-             f'{os.getloadavg()[0]:.1f} at the end); {total_s:.0f} s in all. Each command is its own `rod-deploy` '
+             f'{load_end:.1f} at the end of the runs); {total_s:.0f} s in all. Each command is its own `rod-deploy` '
              'process, timed from outside (wall clock; CPU in brackets). Shapes drawn by code in the script, '
              'never used to develop or tune anything. Simulation: our DER with the CLI defaults (5 mm edges, dt 0.02 '
              's, 0.01 m/s); friction 0.5 from the rod file. Eq. 17 e_mean / sigma in cm (N = 50, the better '
@@ -735,8 +738,8 @@ def write_report(out, rows, errs, total_s, elastica=None, shape_set='original'):
     except Exception as e:                       # noqa: BLE001 - the table matters more than the figure
         print(f'no overview plot: {e}', file=sys.stderr)
     out.write_text('\n'.join(lines) + '\n')
-    out.with_suffix('.json').write_text(json.dumps({'runs': rows, 'errors': errs, 'elastica': elastica or []},
-                                                   indent=1, default=str))
+    out.with_suffix('.json').write_text(json.dumps({'runs': rows, 'errors': errs, 'elastica': elastica or [],
+                                                    'load_end': load_end}, indent=1, default=str))
     return lines
 
 
@@ -872,7 +875,7 @@ def main():
             replayed = {e['dir'] for e in new}
             el = [e for e in previous.get('elastica') or [] if e['dir'] not in replayed] + new
             write_report(out, previous['runs'], previous['errors'], previous.get('total_s', 0.0), el,
-                         shape_set=args.set)
+                         shape_set=args.set, load_end=previous.get('load_end'))
             data = json.loads(out.with_suffix('.json').read_text())
             out.with_suffix('.json').write_text(json.dumps({**data, 'total_s': previous.get('total_s', 0.0)},
                                                            indent=1, default=str))
@@ -897,7 +900,7 @@ def main():
             added = {r['dir'] for r in rows}
             rows = [r for r in previous['runs'] if r['dir'] not in added] + rows
             write_report(out, rows, previous['errors'], previous.get('total_s', 0.0) + time.perf_counter() - t_all,
-                         previous.get('elastica'), shape_set=args.set)
+                         previous.get('elastica'), shape_set=args.set, load_end=previous.get('load_end'))
             data = json.loads(out.with_suffix('.json').read_text())
             out.with_suffix('.json').write_text(json.dumps(
                 {**data, 'total_s': previous.get('total_s', 0.0) + time.perf_counter() - t_all}, indent=1,
