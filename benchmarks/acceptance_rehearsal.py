@@ -364,8 +364,14 @@ def pattern_file(fmt):
 
 
 def load_run_pattern(d):
-    """The pattern of the run in folder ``d`` as the CLI reads it (an image through perception)."""
+    """The pattern of the run in folder ``d`` as the CLI reads it (an image through perception; in the benchmark
+    environment, which has no OpenCV, the points perception gave when the run was made, ``pattern_perceived.txt``)."""
     from rod_deploy.planning.pattern_input import load_pattern
+    if (Path(d) / 'pattern.png').exists() and (Path(d) / 'pattern_perceived.txt').exists():
+        try:
+            import cv2  # noqa: F401
+        except ImportError:
+            return load_pattern(Path(d) / 'pattern_perceived.txt')
     for name in ('pattern.csv', 'pattern.txt', 'pattern.png'):
         if (Path(d) / name).exists():
             return load_pattern(Path(d) / name, m_per_px=IMAGE_M_PER_PX if name.endswith('.png') else None)
@@ -411,6 +417,9 @@ def do_run(shape, rod, form, method, simulate, shp, log, extra=()):
         old.unlink()
     pat = d / name
     write_pattern(pat, pts, fmt)
+    (d / 'pattern_perceived.txt').unlink(missing_ok=True)
+    if fmt == 'png':                         # what perception makes of it, for the replay's scoring without OpenCV
+        np.savetxt(d / 'pattern_perceived.txt', load_run_pattern(d), fmt='%.6f')
     (d / 'rod.yaml').write_text(rod_yaml(rod, form))
     row = {'shape': shape, 'rod': rod, 'form': form, 'method': method + ''.join(f' {a}' for a in extra),
            'dir': str(d.relative_to(ROOT))}
@@ -811,10 +820,10 @@ def replay_elastica(run_dirs, log, element_m=None, dt_s=None):
         res, wall = replay_in_elastica(cases, rod, rod.friction if rod.friction is not None else 0.5, el_settings)
         cpu = time.process_time() - cpu
         for d, r in zip(dirs, res):
+            np.savetxt(d / 'deployed_elastica.csv', r['deployed_xy'], delimiter=',', header='x,y', comments='')
             e = eq17_error(load_run_pattern(d), r['deployed_xy'])
             out.append({'dir': str(d.relative_to(ROOT)), 'wall_s': wall, 'cpu_s': cpu, 'batch': len(dirs),
                         'load': os.getloadavg()[0], 'settings': settings, **e})
-            np.savetxt(d / 'deployed_elastica.csv', r['deployed_xy'], delimiter=',', header='x,y', comments='')
             log(f'    {d.name}: e_mean {e["e_mean_cm"]:.3f} cm')
     return out
 
