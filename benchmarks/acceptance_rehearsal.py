@@ -731,6 +731,7 @@ def write_report(out, rows, errs, total_s, elastica=None, shape_set='original', 
                          f'{1e3 * e["settings"]["element_length_m"]:g} / {e["settings"]["dt_s"]:g} | '
                          f'{e.get("batch", "-")} | '
                          f'{_f(e.get("cpu_s"), ".0f")} | {_f(e.get("load"), ".1f")} |')
+    lines += summary_against_targets(rows, elastica)
     lines += ['', '## Bad inputs: exit 2, one line naming the problem, no traceback, no file (evaluate: nothing on '
                   'stdout)', '', f'{sum(e["ok"] for e in errs)} of {len(errs)} as expected. "as expected": exit 2, one '
               'line, no traceback, no file, and the expected words (and point) in the message.', '',
@@ -750,6 +751,47 @@ def write_report(out, rows, errs, total_s, elastica=None, shape_set='original', 
     out.with_suffix('.json').write_text(json.dumps({'runs': rows, 'errors': errs, 'elastica': elastica or [],
                                                     'load_end': load_end}, indent=1, default=str))
     return lines
+
+
+def summary_against_targets(rows, elastica):
+    """Per shape (default plans, the runs without extra arguments): the three methods' e_mean in our DER, nn's in
+    PyElastica, the intuitive / nn ratio and the times, against issue #10's targets."""
+    shapes = list(dict.fromkeys(r['shape'] for r in rows if r['method'] in ('nn', 'numeric', 'intuitive')))
+    el = {e['dir']: e['e_mean_cm'] for e in elastica or []}
+    by = {(r['shape'], r['method']): r for r in rows}
+    if not shapes:
+        return []
+    out = ['', '## Against the targets (default plans)', '',
+           'Targets of issue #10: e_mean <= 0.1 cm in our DER and <= 0.2 cm in PyElastica (medium friction), nn better '
+           'than intuitive on every pattern and >= 3x on the mean; the whole `rod-deploy plan` process <= 5 s; '
+           'simulating a 0.9 m rod <= 60 s. Times: wall clock (CPU) of the process, on the shared 2 cores.', '',
+           '| shape | rod | nn e_mean cm (DER) | <= 0.1 | nn PyElastica | <= 0.2 | numeric | intuitive | intuitive / nn '
+           '| nn plan s | nn simulate s | refused / failed |', '|---|---|---|---|---|---|---|---|---|---|---|---|']
+    pairs = []
+    for shape in shapes:
+        nn, num, it = (by.get((shape, m)) for m in ('nn', 'numeric', 'intuitive'))
+
+        def e(r):
+            return ((r or {}).get('eval') or {}).get('e_mean_cm')
+        ratio = e(it) / e(nn) if e(nn) and e(it) else None
+        if ratio is not None:
+            pairs.append((e(nn), e(it)))
+        pe = el.get(nn['dir']) if nn else None
+        refused = ', '.join(f'{m} ({"refused" if r["plan_rc"] == 2 else "FAILED"})' for m, r in
+                            (('nn', nn), ('numeric', num), ('intuitive', it)) if r and r['plan_rc'] != 0)
+        out.append(f'| {shape} | {(nn or it)["rod"]} | {_f(e(nn), ".3f")} | '
+                   f'{"-" if e(nn) is None else ("yes" if e(nn) <= 0.1 else "no")} | {_f(pe, ".3f")} | '
+                   f'{"-" if pe is None else ("yes" if pe <= 0.2 else "no")} | {_f(e(num), ".3f")} | '
+                   f'{_f(e(it), ".3f")} | {_f(ratio, ".1f")} | '
+                   f'{_f((nn or {}).get("plan_wall"), ".1f")} ({_f((nn or {}).get("plan_cpu"), ".1f")}) | '
+                   f'{_f((nn or {}).get("sim_wall"), ".0f")} ({_f((nn or {}).get("sim_cpu"), ".0f")}) | {refused or "-"} |')
+    if pairs:
+        a, b = np.array(pairs).T
+        out += ['', f'Shapes simulated with both nn and intuitive: {len(pairs)}; nn mean {a.mean():.3f} cm, intuitive '
+                    f'mean {b.mean():.3f} cm ({b.mean() / a.mean():.1f}x); nn better on {int(np.sum(a < b))} of '
+                    f'{len(pairs)} (least ratio {np.min(b / a):.1f}x); nn within 0.1 cm on {int(np.sum(a <= 0.1))} '
+                    f'of {len(pairs)}.']
+    return out
 
 
 def plot_overview(path, rows):
