@@ -825,8 +825,10 @@ def plot_overview(path, rows):
     fig.suptitle('grey: pattern (dot: first point); blue: deployed, our DER (dot: free end); orange dashed: '
                  'PyElastica', fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    fig.savefig(path, dpi=70)
     plt.close(fig)
+    from PIL import Image                        # a small file: 64 colours are enough for lines on white
+    Image.open(path).convert('RGB').quantize(64).save(path, optimize=True)
     return True
 
 
@@ -906,6 +908,8 @@ def main():
     shp = fresh_shapes() if fresh else shapes()
     if fresh:
         WORK = WORK / 'fresh'
+    if args.no_sim:           # a folder of its own: a plan-only run would delete the simulated runs' files
+        WORK = WORK / 'plan_only'
     WORK.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
 
