@@ -21,6 +21,16 @@ youngs_modulus + density). Every run is three processes, timed from outside:
 
 then bad inputs, each of which must give exit status 2, one line on stderr naming the problem, no traceback and no
 output file. Writes ``acceptance_rehearsal.md`` (and the files of every run under ``out/acceptance/``).
+
+The shapes above have been looked at while developing since. ``--set fresh`` (round 9) is a second set, drawn once and
+not tuned on: cursive a, m and w, digits 5, 7 and 9, a rounded star, a clothoid, a mouse-drawn polyline, a closed egg,
+a paperclip in a points file with unusual but valid formatting (and a flow-style rod YAML), a 0.855 m meander near rod
+#2's length limit and a cursive l given as a PNG with ``--m-per-px``, on the paper's rods #1-#3, each with every
+method, and 20 bad inputs of plan, simulate and evaluate (``acceptance_rehearsal_fresh.md``, runs under
+``out/acceptance/fresh/``):
+
+    python benchmarks/acceptance_rehearsal.py --set fresh [--only S,...] [--methods nn,...] [--plan-args '--start tangent']
+        [--add-runs]                 # add runs to the last results instead of starting new ones
 """
 from __future__ import annotations
 
