@@ -80,6 +80,24 @@ def test_the_bend_note_tells_the_pattern_from_its_replaced_start(tmp_path, capsy
     assert f'the pattern as drawn: up to {summary["pattern_max_abs_kappa_bar"]:.2g}' in out.err
 
 
+
+def test_the_bend_note_does_not_give_the_planned_curves_bend_as_the_patterns(tmp_path, capsys):
+    """With the default curvature rate limit the cursive e's planned curve bends less than the drawing (|kappa_bar|
+    1.19 against 1.38): the note said 'the pattern bends with |kappa_bar| up to 1.2', and for the fresh rehearsal's
+    cursive a 'up to 1.2 (radius 0.0294 m)' where the drawing bends with radius 1.4 cm."""
+    t = np.linspace(-0.75 * np.pi, 1.25 * np.pi, 500)
+    e = np.column_stack([0.025 * t - 0.07 * np.sin(t), 0.07 * np.cos(t)])
+    np.savetxt(tmp_path / 'e.txt', e - e[0])
+    (tmp_path / 'rod.yaml').write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
+    assert main(['plan', '--pattern', str(tmp_path / 'e.txt'), '--rod', str(tmp_path / 'rod.yaml'), '--out',
+                 str(tmp_path / 'e.csv')]) == 0
+    out = capsys.readouterr()
+    summary = json.loads(out.out.strip().splitlines()[-1])
+    assert 1.0 < summary['max_abs_kappa_bar'] < summary['pattern_max_abs_kappa_bar'] - 0.1
+    assert 'the pattern bends' not in out.err
+    assert (f'the planned curve (the pattern as drawn: up to {summary["pattern_max_abs_kappa_bar"]:.2g}, widened '
+            f'within the limits) bends with |kappa_bar| up to {summary["max_abs_kappa_bar"]:.2g}') in out.err
+
 def heart(n=500, phase=0.003):
     """The classic heart, 20 cm wide: cusps at its bottom tip and its top dent (sampled beside the cusp points)."""
     t = np.linspace(0, 2 * np.pi, n + 1)[:-1] + phase

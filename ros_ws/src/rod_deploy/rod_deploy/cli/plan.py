@@ -174,6 +174,8 @@ def run(args) -> int:
         what = 'the pattern bends'
         if summary['max_abs_kappa_bar'] > kappa_bar_given + 0.01:
             what = f'the planned curve (the pattern as drawn: up to {kappa_bar_given:.2g}, its replaced start more) bends'
+        elif summary['max_abs_kappa_bar'] < kappa_bar_given - 0.01:    # the start and rate limit widened the bends
+            what = f'the planned curve (the pattern as drawn: up to {kappa_bar_given:.2g}, widened within the limits) bends'
         print(f'rod-deploy plan: note: {what} with |kappa_bar| up to {summary["max_abs_kappa_bar"]:.2g} '
               f'(radius {rod.gravito_bending_length_m / summary["max_abs_kappa_bar"]:.3g} m); in our simulations '
               'deployments lose accuracy where |kappa_bar| > 1 (radius < L_gb): consider --smoothing or a larger '

@@ -108,3 +108,41 @@ def fit_normal_equations(theta, dtheta, first, settled, half_ds, r_xy):
             A[a, b] = acc
             A[b, a] = acc
     return A, g
+
+
+@njit(cache=True)
+def cholesky_solve(H, b):
+    """(x, ok): x solving H x = b for a symmetric positive definite H (p, p) by its Cholesky factor H = L L^T, in
+    plain compiled loops; ok is False (x zero) where a pivot is not positive (H not positive definite). Single-
+    threaded on purpose: LAPACK's potrf (numpy's ``cholesky``) hands a matrix of more than about a hundred unknowns
+    (the closest curve of a 0.7 m pattern on rod #1, knots every L_gb / 4) to OpenBLAS's threads, which on the loaded
+    2-core machine made the cursive m's plan take 10.9 s of CPU and 26 s of wall clock instead of 1.3 s
+    (benchmarks/results/acceptance_rehearsal_fresh_r9.md); this is about 0.5 ms for p = 150."""
+    p = H.shape[0]
+    L = np.zeros((p, p))
+    for j in range(p):
+        s = H[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return np.zeros(p), False
+        d = np.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, p):
+            s = H[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / d
+    y = np.empty(p)
+    for i in range(p):                       # L y = b
+        s = b[i]
+        for k in range(i):
+            s -= L[i, k] * y[k]
+        y[i] = s / L[i, i]
+    x = np.empty(p)
+    for i in range(p - 1, -1, -1):           # L^T x = y
+        s = y[i]
+        for k in range(i + 1, p):
+            s -= L[k, i] * x[k]
+        x[i] = s / L[i, i]
+    return x, True

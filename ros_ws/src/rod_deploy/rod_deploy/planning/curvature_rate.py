@@ -188,7 +188,8 @@ EXACT_SET_ITERATIONS = 8
 
 def levenberg_marquardt(residuals, normal_equations, x0, limits=None, ftol=1e-10, xtol=1e-10, max_iterations=1000):
     """argmin |residuals(x)|^2 + |w max(|D x| - c, 0)|^2 from ``x0``: Levenberg-Marquardt on the normal equations
-    (Cholesky of J^T J plus Marquardt's damping, scaled by the largest diagonal seen so far). ``normal_equations(x,
+    (Cholesky of J^T J plus Marquardt's damping, scaled by the largest diagonal seen so far; compiled, single-threaded:
+    ``closest_curve_kernel.cholesky_solve``). ``normal_equations(x,
     r)`` returns (J^T J, J^T r) at x, r = residuals(x) (the last residuals evaluated were at x when the step was
     taken, so a caller may reuse what it computed there). ``limits``: None or (D, c, w), D an (m, p) matrix (dense or
     scipy.sparse), c (m,) >= 0 (inf: none), w >= 0: limits |D_i x| <= c_i kept as penalty rows of weight w (a bound
@@ -203,7 +204,7 @@ def levenberg_marquardt(residuals, normal_equations, x0, limits=None, ftol=1e-10
     gained less than that (a heavily damped step gains little far from the minimum too: stopping there left the cost
     2e-6 above the minimum on some plans), or when a step changes x by less than ``xtol`` (relative), or after
     ``max_iterations`` Jacobians."""
-    from scipy.linalg import cho_solve
+    from .closest_curve_kernel import cholesky_solve
 
     x = np.array(x0, float, copy=True)
     p = len(x)
@@ -253,8 +254,10 @@ def levenberg_marquardt(residuals, normal_equations, x0, limits=None, ftol=1e-10
         for iteration in range(EXACT_SET_ITERATIONS + m + 1):
             a = w2 * active
             H = H0 + DT_diag_D(a) if active.any() else H0
-            step = -cho_solve((np.linalg.cholesky(H), True), g + DT_at(a * (Dx - sign * c_finite)),
-                               check_finite=False)
+            solution, ok = cholesky_solve(H, g + DT_at(a * (Dx - sign * c_finite)))
+            if not ok:
+                raise np.linalg.LinAlgError('the damped normal equations are not positive definite')
+            step = -solution
             Dy = Dx + D_at(step)
             now = np.abs(Dy) > c
             if iteration < EXACT_SET_ITERATIONS:
