@@ -60,8 +60,6 @@ DEFAULT_DENSITY = 1180.0          # kg/m^3 (vinyl polysiloxane, the paper's rods
 FRICTION_LEVELS = {'low': 0.2, 'medium': 0.5, 'high': 1.0}
 #: regularisation velocity of Coulomb friction [m/s], the deployments' default (the only place it is set; see above)
 DEFAULT_FRICTION_VELOCITY_M_S = 1e-6
-#: seed of the hanging rod's imperfection (``SimulationSettings.imperfection_m``)
-IMPERFECTION_SEED = 20261126
 #: a node counts as laid (``deployed_shape``) while its centreline is at most this above the table's contact height
 LAID_HEIGHT_TOLERANCE_M = 3e-4
 #: the rod's natural curvature (> 0 turning left once laid) as the material curvature kappa2: the gripper holds
@@ -92,10 +90,11 @@ class SimulationSettings:
     #: a step whose Newton iteration does not converge is never accepted: it is retried as two half steps, down to
     #: dt_s / 2**max_step_halvings, then the simulation fails with a DeploymentError
     max_step_halvings: int = 6
-    #: standard deviation [m] of horizontal offsets (seeded, ``IMPERFECTION_SEED``) of the hanging rod's free interior
-    #: nodes at the start: without them a mirror-symmetric deployment follows an unstable symmetric equilibrium (see
-    #: the module docstring); 0: the perfect rod
+    #: standard deviation [m] of horizontal offsets (seeded by ``imperfection_seed``) of the hanging rod's free
+    #: interior nodes at the start: without them a mirror-symmetric deployment follows an unstable symmetric
+    #: equilibrium (see the module docstring); 0: the perfect rod
     imperfection_m: float = 1e-6
+    imperfection_seed: int = 20261126
 
 
 @dataclass
@@ -299,7 +298,7 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
     nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
     if settings.imperfection_m > 0:           # the free interior nodes; the free end, clamp and held edge stay put
-        rng = np.random.default_rng(IMPERFECTION_SEED)
+        rng = np.random.default_rng(settings.imperfection_seed)
         nodes[k + 1:n_edges - 1, :2] += settings.imperfection_m * rng.standard_normal((n_edges - 2 - k, 2))
     params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
