@@ -101,6 +101,19 @@ def test_a_soft_rod_is_laid_to_the_end_of_the_pattern():
     assert e['e_mean_cm'] < 0.02, e
 
 
+def test_a_mirror_symmetric_deployment_does_not_follow_the_unstable_symmetric_path():
+    """The numeric planner's grasps for a straight line lie exactly in the vertical plane. A perfect rod then stays
+    symmetric in the simulation and its free end slid back 9.5 mm after the lead-in (e_mean 0.95 cm here, 4.5 cm on
+    the paper's rods #2-#3): an unstable equilibrium path, which the hanging rod's 1 um imperfection leaves."""
+    rod = rod_description_from_dict({'length': 0.6, 'radius': 0.0016, 'L_gb': 0.032, 'friction': 0.5})
+    line = np.column_stack([np.zeros(41), -np.linspace(0.0, 0.3, 41)])
+    plan = plan_trajectory(line, rod, PlannerSettings(method='numeric'))
+    assert SimulationSettings().imperfection_m == 1e-6
+    res = simulate_deployment(plan.t, plan.position, plan.quaternion, rod, SimulationSettings(edge_length_m=0.01))
+    assert np.linalg.norm(res.deployed_xy[0] - line[0]) < 1e-3
+    assert eq17_error(line, res.deployed_xy, directed=True)['e_mean_cm'] < 0.1
+
+
 def test_a_trajectory_not_starting_hanging_needs_the_start_point(straight_deployment):
     plan, _ = straight_deployment
     k = plan.first_grasp_index

@@ -13,7 +13,13 @@ The rod's rest length is its own length L (CONTRACTS.md section 4: the rod's len
 first static solve stretches it by its weight up to the hanging pose, L + h + rho g L^2 / (2 E). (Until this round
 the rest length was the stretched hanging length, 0.57 % (5.0 mm) too long for rod #3 and 2.4 % for rod #1: the hanging rod
 then stood on its free end, its lower half compressed, an unstable straight equilibrium whose buckling direction at
-the start of the lead-in was decided by the time step.) The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
+the start of the lead-in was decided by the time step.) A perfect rod deployed by a mirror-symmetric trajectory stays
+symmetric in the simulation, and the symmetric path can be an unstable one: a straight line planned by the numeric
+planner (grasps exactly in the vertical plane) was laid 4.5 cm off on rods #2 and #3, its free end sliding back by
+centimetres after the lead-in, while a 1 um random offset of the hanging rod's nodes laid it within 0.001-0.023 cm
+(and within 0.03 cm the network's grasps, 0.3 mm off that plane, had laid it). The hanging rod therefore starts
+with such an imperfection (``imperfection_m``, seeded: runs stay reproducible), as any buckling analysis does; a real
+rod has far larger ones. The rest of the rod is free, under gravity, on a rigid table with regularised Coulomb friction, with a
 small viscous damping (quasi-static deployment). Self-contact is ignored.
 
 The trajectory is replayed with the gripper at ``max_gripper_speed_m_s`` (default 0.01 m/s, the planner's speed:
@@ -84,6 +90,11 @@ class SimulationSettings:
     #: a step whose Newton iteration does not converge is never accepted: it is retried as two half steps, down to
     #: dt_s / 2**max_step_halvings, then the simulation fails with a DeploymentError
     max_step_halvings: int = 6
+    #: standard deviation [m] of horizontal offsets (seeded by ``imperfection_seed``) of the hanging rod's free
+    #: interior nodes at the start: without them a mirror-symmetric deployment follows an unstable symmetric
+    #: equilibrium (see the module docstring); 0: the perfect rod
+    imperfection_m: float = 1e-6
+    imperfection_seed: int = 20261126
 
 
 @dataclass
@@ -286,6 +297,9 @@ def simulate_deployment(t, position, quaternion, rod: RodDescription, settings: 
     k = max(n_clamp - 1, 0)
     u = (p0 - nodes[k]) / np.linalg.norm(p0 - nodes[k])
     nodes[k:] = nodes[k][None] + (s[k:] - s[k])[:, None] * u[None]
+    if settings.imperfection_m > 0:           # the free interior nodes; the free end, clamp and held edge stay put
+        rng = np.random.default_rng(settings.imperfection_seed)
+        nodes[k + 1:n_edges - 1, :2] += settings.imperfection_m * rng.standard_normal((n_edges - 2 - k, 2))
     params = material_parameters(rod, friction, settings.damping_per_s, settings.friction_velocity_m_s)
     d1_top = R0[:, 0]
     rod_model = DiscreteElasticRod(nodes, params, d1_first=d1_top)
