@@ -98,16 +98,17 @@ def main():
         import matplotlib
         matplotlib.use('Agg')
         import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(8, 3.6))
-        for lab, r in res:
+        fig, ax = plt.subplots(figsize=(10, 3.6))
+        colours = plt.cm.tab20(np.arange(len(res)) % 20)
+        for (lab, r), c in zip(res, colours):
             m = r['p']['laid'] & (r['p']['kbar'] > 0.05)          # where the pattern bends ("outside" defined)
             y = np.where(m, 1e3 * r['out_final'], np.nan)
-            ax.plot(100 * r['p']['s'], y, lw=1.2, label=f"{lab} ({r['p']['e_mean_cm']:.3f} cm)")
+            ax.plot(100 * r['p']['s'], y, lw=1.2, color=c, label=f"{lab} ({r['p']['e_mean_cm']:.3f} cm)")
         ax.axhline(0.0, color='0.5', lw=0.8)
         ax.set_xlabel('arc length from the free end [cm]')
         ax.set_ylabel('offset [mm], + outside')
         ax.set_title(f'laid rod against the pattern {args.title}; where |kappa_bar| > 0.05', fontsize=9)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=6, loc='center left', bbox_to_anchor=(1.01, 0.5))
         fig.tight_layout()
         png = results_path(args, args.plot)
         fig.savefig(png, dpi=90)
