@@ -645,6 +645,7 @@ def _write(out, rows, checks, s, wall):
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {wall:.0f} s in all. Cosserat rod, element '
              f'{1e3 * s.element_length_m:g} mm, position Verlet dt {s.dt_s:g} s, uniform damping '
              f'{s.damping_per_s:g}/s, rod-plane contact k {s.contact_k_n_m:g} N/m nu {s.contact_nu_n_s_m:g} N s/m '
+             f'on the elements within {1e6 * s.contact_surface_tol_m:g} um of the contact height '
              + (f'with Coulomb friction on the centreline (`CentrelineCoulombPlane`: no rolling; static / kinetic '
                 f'switch at slip tolerance {s.slip_velocity_tol_m_s:g} m/s)' if s.friction_law == 'centreline' else
                 'with Coulomb friction on the nodes\' centreline velocity, stick / slip over the step '
