@@ -9,7 +9,9 @@ rod simulator, used as a library) and score the deployed shape with our Eq. 17.
 Set-up, the same as our simulator's (``rod_deploy.deployment.simulate``, CONTRACTS.md section 4) but in another
 model of the rod: a Cosserat rod (shear and stretch, explicit position-Verlet steps) of the rod's E, density and
 radius (nu = 0.5), gravity, PyElastica's rod-plane contact (penalty spring and damper on the elements plus the
-plane's response force) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
+plane's response force, on the elements touching it: centreline at most 1 um above the contact height, not
+PyElastica's 0.1 mm band, on which the table held and braked the rod before it touched down, see
+``simulator_gap_r9.md``) with Coulomb friction on the nodes' centreline velocity as a stick / slip projection over the
 step (``NodalCoulombStickPlane``, the default since issue #10's third look: a sticking node is held still at any load
 up to mu N, N the normal force the plane applies to the node since the study of the two simulators' disagreement,
 ``sims_disagreement.md``, with 5 mm elements instead of 1 cm; ``--friction-law centreline``:
@@ -83,6 +85,12 @@ class ElasticaSettings:
     damping_per_s: float = 2.0        # uniform viscous damping, as in our simulator
     contact_k_n_m: float = 200.0      # penalty stiffness of the table per element [N/m]
     contact_nu_n_s_m: float = 0.1     # contact damping per element [N s/m]
+    #: an element counts as touching the table while its centreline is at most this above the contact height: it
+    #: gets PyElastica's plane response (and with it the stick law's normal force, hence friction). PyElastica's
+    #: own value, 1e-4 m (until `simulator_gap_r9.md`), let the table hold and brake elements 0.1 mm above it:
+    #: the laid rod floated on that band, and the rod still descending to its touch-down point was gripped by
+    #: friction up to an element early (rod #3's circle at mu 1: 0.234 cm; 0.065 at 1e-6)
+    contact_surface_tol_m: float = 1e-6
     slip_velocity_tol_m_s: float = 1e-4   # below this an element is sticking (PyElastica's static friction)
     hang_settle_s: float = 2.0        # hanging at rest before the replay
     settle_s: float = 1.0             # gripper still at the end
@@ -154,11 +162,11 @@ class CentrelineCoulombPlane(ea.NoContact):
     sideways rolls like a free cylinder, and an arc laid at rest keeps rolling (``friction_canonical.py``).
     Our DER's friction acts on the centreline too (no rolling), as in the paper's simulator."""
 
-    def __init__(self, k, nu, mu, slip_velocity_tol):
+    def __init__(self, k, nu, mu, slip_velocity_tol, surface_tol=ElasticaSettings.contact_surface_tol_m):
         super().__init__()
         self.k, self.nu, self.mu = np.float64(k), np.float64(nu), np.float64(mu)
         self.slip_velocity_tol = np.float64(slip_velocity_tol)
-        self.surface_tol = np.float64(1.0e-4)
+        self.surface_tol = np.float64(surface_tol)
 
     @property
     def _allowed_system_two(self):
@@ -225,11 +233,11 @@ class NodalCoulombStickPlane(ea.NoContact):
     were changed together): not the tolerance but, as far as measured, the step's friction impulse sets it.
     Coulomb's law has no creep: the stick force here holds the node exactly, at any load up to mu N."""
 
-    def __init__(self, k, nu, mu, dt, applied_normal=False):
+    def __init__(self, k, nu, mu, dt, applied_normal=False, surface_tol=ElasticaSettings.contact_surface_tol_m):
         super().__init__()
         self.k, self.nu, self.mu, self.dt = np.float64(k), np.float64(nu), np.float64(mu), np.float64(dt)
         self.applied_normal = bool(applied_normal)
-        self.surface_tol = np.float64(1.0e-4)
+        self.surface_tol = np.float64(surface_tol)
 
     @property
     def _allowed_system_two(self):
@@ -338,11 +346,11 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
         if s.friction_law == 'centreline':
             sim.detect_contact_between(rod_e, plane).using(
                 CentrelineCoulombPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction,
-                slip_velocity_tol=s.slip_velocity_tol_m_s)
+                slip_velocity_tol=s.slip_velocity_tol_m_s, surface_tol=s.contact_surface_tol_m)
         elif s.friction_law == 'stick':
             sim.detect_contact_between(rod_e, plane).using(
                 NodalCoulombStickPlane, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m, mu=friction, dt=s.dt_s,
-                applied_normal=s.applied_normal)
+                applied_normal=s.applied_normal, surface_tol=s.contact_surface_tol_m)
         else:
             sim.detect_contact_between(rod_e, plane).using(
                 ea.RodPlaneContactWithAnisotropicFriction, k=s.contact_k_n_m, nu=s.contact_nu_n_s_m,
@@ -381,6 +389,29 @@ def replay_in_elastica(cases, rod, friction, settings=None, progress=True, snaps
 
 
 # ---------------------------------------------------------------------------------------------- closed forms
+
+def table_force_on_level_rod(gap_m, mu=0.5, settings=None):
+    """The table's force on a short level rod (2 cm, 4 elements, rod #3's section and material) whose centreline is
+    ``gap_m`` above the contact height, at rest but for a sideways velocity of 1 mm/s, loaded by its weight: the
+    replay's contact law applied once. Returns (normal force, friction force) [N], summed over the nodes. A rod
+    above the table (gap > 0) does not touch it, so both must be zero; a rod pressed into it (gap < 0) gets a normal
+    force and friction against its motion."""
+    s = settings or ElasticaSettings()
+    h, rho, E = 0.002, 1180.0, 4.55e5
+    rod_e = ea.CosseratRod.straight_rod(4, np.array([0.0, 0.0, h + gap_m]), np.array([1.0, 0.0, 0.0]),
+                                        np.array([0.0, 0.0, 1.0]), 0.02, h, rho, youngs_modulus=E,
+                                        shear_modulus=E / 3.0)
+    plane = ea.Plane(plane_origin=np.zeros(3), plane_normal=np.array([0.0, 0.0, 1.0]))
+    rod_e.velocity_collection[1] = 1e-3
+    rod_e.internal_forces[:] = 0.0
+    rod_e.external_forces[:] = 0.0
+    rod_e.external_forces[2] = -G * rod_e.mass
+    before = rod_e.external_forces.copy()
+    NodalCoulombStickPlane(s.contact_k_n_m, s.contact_nu_n_s_m, mu, s.dt_s, applied_normal=s.applied_normal,
+                           surface_tol=s.contact_surface_tol_m).apply_contact(rod_e, plane)
+    f = (rod_e.external_forces - before).sum(axis=1)
+    return float(f[2]), float(np.hypot(f[0], f[1]))
+
 
 class _Clamp(ea.ConstraintBase):
     """Node 0 and element 0 held where they start."""
@@ -471,6 +502,9 @@ def main():
     ap.add_argument('--element', type=float, default=ElasticaSettings.element_length_m)
     ap.add_argument('--contact-k', type=float, default=ElasticaSettings.contact_k_n_m)
     ap.add_argument('--slip-tol', type=float, default=ElasticaSettings.slip_velocity_tol_m_s)
+    ap.add_argument('--contact-tol', type=float, default=ElasticaSettings.contact_surface_tol_m,
+                    help='an element touches the table while its centreline is at most this above the contact '
+                         'height [m] (PyElastica\'s own value: 1e-4)')
     ap.add_argument('--rotary-scale', type=float, default=ElasticaSettings.rotary_inertia_scale,
                     help='rotary inertia factor (a large one slows the rod\'s rolling on the table: a diagnostic)')
     ap.add_argument('--friction-law', choices=('pyelastica', 'centreline', 'stick'),
@@ -498,6 +532,7 @@ def main():
     args = ap.parse_args()
     settings = ElasticaSettings(dt_s=args.dt, element_length_m=args.element, contact_k_n_m=args.contact_k,
                                 slip_velocity_tol_m_s=args.slip_tol, rotary_inertia_scale=args.rotary_scale,
+                                contact_surface_tol_m=args.contact_tol,
                                 friction_law=args.friction_law, applied_normal=not args.response_normal)
     t_all = time.perf_counter()
     checks = []
@@ -610,6 +645,7 @@ def _write(out, rows, checks, s, wall):
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {wall:.0f} s in all. Cosserat rod, element '
              f'{1e3 * s.element_length_m:g} mm, position Verlet dt {s.dt_s:g} s, uniform damping '
              f'{s.damping_per_s:g}/s, rod-plane contact k {s.contact_k_n_m:g} N/m nu {s.contact_nu_n_s_m:g} N s/m '
+             f'on the elements within {1e6 * s.contact_surface_tol_m:g} um of the contact height '
              + (f'with Coulomb friction on the centreline (`CentrelineCoulombPlane`: no rolling; static / kinetic '
                 f'switch at slip tolerance {s.slip_velocity_tol_m_s:g} m/s)' if s.friction_law == 'centreline' else
                 'with Coulomb friction on the nodes\' centreline velocity, stick / slip over the step '

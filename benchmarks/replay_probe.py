@@ -13,6 +13,7 @@ PyElastica's plane response on the elements, half to each node, unless ``--set a
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -70,6 +71,19 @@ def with_settings(settings, sets):
             raise SystemExit(f'replay_probe: error: --set {name}: a {typ.__name__} setting cannot be given here')
         settings = dataclasses.replace(settings, **{name: value})
     return settings
+
+
+def friction_coefficient(text, levels):
+    """A friction level's name (``levels``) or a positive number."""
+    if text in levels:
+        return levels[text]
+    try:
+        mu = float(text)
+    except ValueError:
+        mu = float('nan')
+    if not mu > 0 or not math.isfinite(mu):
+        raise SystemExit(f'replay_probe: error: --friction {text}: give {", ".join(levels)} or a positive number')
+    return mu
 
 
 def run_elastica(case, rod, friction, sets, every):
@@ -146,7 +160,8 @@ def main():
     ap.add_argument('--pattern', default='circle')
     ap.add_argument('--method', default='published')
     ap.add_argument('--rod', type=int, default=3)
-    ap.add_argument('--friction', default='medium')
+    ap.add_argument('--friction', default='medium',
+                    help='low / medium / high (0.2 / 0.5 / 1.0) or a coefficient (e.g. 5 for the no-slip limit)')
     ap.add_argument('--every', type=float, default=1.0, help='snapshot period [simulated s]')
     ap.add_argument('--set', nargs='*', default=[], help='settings overrides name=value')
     ap.add_argument('--pattern-file', help='score against this pattern file instead of --pattern (needs --traj)')
@@ -167,7 +182,8 @@ def main():
     sets = dict(kv.split('=', 1) for kv in args.set)
     cpu = time.process_time()
     run = run_elastica if args.sim == 'elastica' else run_der
-    times, nodes, deployed, t_rel, desc, extra = run(case, rod, FRICTION_LEVELS[args.friction], sets, args.every)
+    times, nodes, deployed, t_rel, desc, extra = run(case, rod, friction_coefficient(args.friction, FRICTION_LEVELS),
+                                                     sets, args.every)
     cpu = time.process_time() - cpu
     # a lead-in-only replay may lay less than two nodes: no Eq. 17 then
     e = eq17_error(P, deployed) if len(deployed) >= 2 else {'e_mean_cm': float('nan')}

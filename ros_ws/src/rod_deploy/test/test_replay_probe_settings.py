@@ -32,3 +32,13 @@ def test_numbers_in_the_field_type_and_others_untouched():
 def test_bad_settings_are_errors(sets, words):
     with pytest.raises(SystemExit, match=words):
         with_settings(SimulationSettings(), sets)
+
+
+def test_friction_a_level_name_or_a_positive_coefficient():
+    from replay_probe import friction_coefficient
+    levels = {'low': 0.2, 'medium': 0.5, 'high': 1.0}
+    assert friction_coefficient('medium', levels) == 0.5
+    assert friction_coefficient('5', levels) == 5.0
+    for bad in ('0', '-1', 'nan', 'inf', 'sticky'):
+        with pytest.raises(SystemExit, match='positive number'):
+            friction_coefficient(bad, levels)
