@@ -117,7 +117,7 @@ def write_table(out, rows, t_all, args):
     lines = ['# Deployment in simulation (paper Table 2), `python benchmarks/deployment_table.py`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores; {time.perf_counter() - t_all:.0f} s in all. '
              'Our DER simulator (edge 5 mm, dt 0.02 s, gripper at 0.01 m/s, damping 2/s, regularised Coulomb '
-             f'friction, regularisation velocity {args.friction_velocity:g} m/s); the deployed shape: the nodes within '
+             f'friction, regularisation velocity {args.friction_velocity:g} m/s; imperfection of the hanging rod {args.imperfection:g} m); the deployed shape: the nodes within '
              f'{1000 * LAID_HEIGHT_TOLERANCE_M:g} mm of lying on the table, from the free end; Eq. 17 with N = 50, the '
              'deployed curve cut at the pattern length; coverage = deployed / '
              f'pattern length. Self-contact ignored. Planner start: {args.start or PlannerSettings().start} '
@@ -167,6 +167,8 @@ def main():
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
+    ap.add_argument('--imperfection', type=float, default=SimulationSettings.imperfection_m,
+                    help='the hanging rod\'s imperfection [m] (0: a perfect rod)')
     ap.add_argument('--out-name', default='deployment_table.md', help='name of the results file')
     ap.add_argument('--refine', type=int, default=4, metavar='N',
                     help='method nn_refined: simulations of templates after the unrefined plan\'s (default 4)')
@@ -238,7 +240,7 @@ def main():
                         else:
                             res = simulate_deployment(t, p, q, rod, SimulationSettings(
                                 friction=FRICTION_LEVELS[fr], start_xy=start,
-                                friction_velocity_m_s=args.friction_velocity))
+                                friction_velocity_m_s=args.friction_velocity, imperfection_m=args.imperfection))
                         e = eq17_error(P, res.deployed_xy)
                         row = (rod_id, fr, name, method, e['e_mean_cm'], e['sigma_cm'], e['coverage'],
                                time.perf_counter() - t0 if refined_note else res.wall_time_s,
