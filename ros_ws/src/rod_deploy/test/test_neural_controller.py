@@ -37,36 +37,6 @@ def test_negative_curvature_is_the_mirror_image(net):
     assert g.position[1] > 0 > p_pos[0, 1]                              # released sign: kappa > 0 puts y < 0
 
 
-def test_the_pose_is_continuous_and_mirror_symmetric_through_zero_curvature(net):
-    """A curvature changing sign at rounding level (an inflection, a straight line) does not move the gripper: the
-    odd part (y, rotvec x and z) vanishes at kappa_bar = 0 and is continuous at the blend's edge (without the blend the
-    network's y at +-0 differs by up to 0.02 L_gb)."""
-    from rod_deploy.planning.neural_controller import ODD_BLEND_KAPPA_BAR
-    ls = np.array([1.0, 3.0, 8.0, 20.0])
-    ks = np.array([800.0, 2500.0, 800.0, 2500.0])
-    p_plus, r_plus = net.predict(ls, ks, 1e-17)
-    p_minus, r_minus = net.predict(ls, ks, -1e-17)
-    np.testing.assert_allclose(p_plus, p_minus, atol=1e-12)
-    np.testing.assert_allclose(r_plus, r_minus, atol=1e-12)
-    p0, r0 = net.predict(ls, ks, 0.0)
-    np.testing.assert_allclose(p0[:, 1], 0.0, atol=1e-15)
-    np.testing.assert_allclose(r0[:, [0, 2]], 0.0, atol=1e-15)
-    below, above = ODD_BLEND_KAPPA_BAR * (1 - 1e-9), ODD_BLEND_KAPPA_BAR * (1 + 1e-9)
-    for k in (below, -below):
-        pb, rb = net.predict(ls, ks, k)
-        pa, ra = net.predict(ls, ks, np.copysign(above, k))
-        np.testing.assert_allclose(pb, pa, atol=1e-7)
-        np.testing.assert_allclose(rb, ra, atol=1e-7)
-    # the blend is the network's odd part at the edge scaled linearly, the even part is the network's own
-    pm, rm = net.predict(ls, ks, 0.5 * ODD_BLEND_KAPPA_BAR)
-    pe, re = net.predict(ls, ks, ODD_BLEND_KAPPA_BAR)
-    np.testing.assert_allclose(pm[:, 1], 0.5 * pe[:, 1], rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(rm[:, [0, 2]], 0.5 * re[:, [0, 2]], rtol=1e-9, atol=1e-15)
-    h = net._forward(np.column_stack([np.log(ls), np.log(ks), np.full(4, 0.5 * ODD_BLEND_KAPPA_BAR)]))
-    np.testing.assert_allclose(pm[:, 0], h[:, 0], rtol=1e-12)
-    np.testing.assert_allclose(rm[:, 1], h[:, 4], rtol=1e-12)
-
-
 def test_outside_the_trained_range_is_refused(net):
     lo, hi = net.trained_range['ls_bar']
     with pytest.raises(OutOfTrainedRange, match='ls_bar'):

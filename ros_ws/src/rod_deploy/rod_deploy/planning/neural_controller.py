@@ -11,14 +11,7 @@ The network is a small MLP trained by ``scripts/train_grasp_network.py`` on the 
 
 Signed curvature: the network sees |kappa_bar|; for kappa_bar < 0 the grasp is mirrored in the x-z plane
 (y -> -y, and the rotation R -> M R M with M = diag(1, -1, 1), i.e. rotvec (rx, ry, rz) -> (-rx, ry, -rz)), as the
-released code does. The pose's odd part in kappa_bar (y and the rotation vector's x and z) must then vanish at
-kappa_bar = 0, which the network only meets to its accuracy (y up to 0.011 L_gb, 0.4 mm on rod #3, of either sign):
-mirrored, the gripper jumped sideways by twice that where a planned curvature changed sign (every inflection, and
-a straight line whose curvature is +-1e-17). Below ``ODD_BLEND_KAPPA_BAR`` the odd part is therefore the network's
-value at that curvature scaled linearly (the exact grasp's odd part is linear there to the cubic term: y = a kappa_bar
-+ O(kappa_bar^3)), so the pose is continuous and exactly mirror-symmetric through kappa_bar = 0; its even part (x, z,
-the rotation vector's y) is the network's. Inputs outside the trained range raise :class:`OutOfTrainedRange`: never
-extrapolated.
+released code does. Inputs outside the trained range raise :class:`OutOfTrainedRange`: never extrapolated.
 Inference is a forward pass of dense layers compiled with numba (a 200-node pattern: about 1 ms; torch is not imported):
 numpy's matrix product hands a 200 x 128 x 128 product to OpenBLAS's threads, which on a loaded 2-core machine took
 20 ms of wall clock and 8 ms of CPU per layer, their spinning afterwards doubling the CPU time of the whole plan
@@ -35,10 +28,6 @@ import numpy as np
 from numba import njit
 
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[1] / 'data' / 'grasp_network.npz'
-#: below this |kappa_bar| the pose's odd part (y, rotvec x and z) is the network's at this curvature scaled linearly
-ODD_BLEND_KAPPA_BAR = 0.1
-#: the outputs (x, y, ls_bar - z, rotvec x, y, z) odd in kappa_bar
-_ODD_OUTPUTS = np.array([1, 3, 5])
 
 
 class OutOfTrainedRange(ValueError):
@@ -95,26 +84,18 @@ class GraspPredictor:
         ls_bar, ks_bar, kappa_bar = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float))
                                                           for v in (ls_bar, ks_bar, kappa_bar)))
         self.check_range(ls_bar, ks_bar, kappa_bar)
-        out = self._forward(features(ls_bar, ks_bar, kappa_bar))
-        near = np.abs(kappa_bar) < ODD_BLEND_KAPPA_BAR
-        if np.any(near):      # the odd part through kappa_bar = 0 (see the module docstring)
-            at_blend = self._forward(features(ls_bar[near], ks_bar[near], np.full(near.sum(), ODD_BLEND_KAPPA_BAR)))
-            out[np.ix_(near, _ODD_OUTPUTS)] = (at_blend[:, _ODD_OUTPUTS]
-                                              * (np.abs(kappa_bar[near]) / ODD_BLEND_KAPPA_BAR)[:, None])
+        h = (features(ls_bar, ks_bar, kappa_bar) - self.input_mean) / self.input_std
+        h = np.ascontiguousarray(h)
+        for w_t, b in zip(self._weights_t[:-1], self.biases[:-1]):
+            h = dense_layer(h, w_t, b)
+            h = h / (1.0 + np.exp(-h))                       # SiLU
+        out = dense_layer(h, self._weights_t[-1], self.biases[-1]) * self.output_std + self.output_mean
         position = np.stack([out[:, 0], out[:, 1], ls_bar - out[:, 2]], axis=1)
         rotvec = out[:, 3:6].copy()
         negative = kappa_bar < 0
         if np.any(negative):
             position[negative], rotvec[negative] = mirror(position[negative], rotvec[negative])
         return position, rotvec
-
-    def _forward(self, raw_features):
-        """The network's outputs (n, 6), unstandardised, for features (n, 3) before standardisation."""
-        h = np.ascontiguousarray((raw_features - self.input_mean) / self.input_std)
-        for w_t, b in zip(self._weights_t[:-1], self.biases[:-1]):
-            h = dense_layer(h, w_t, b)
-            h = h / (1.0 + np.exp(-h))                       # SiLU
-        return dense_layer(h, self._weights_t[-1], self.biases[-1]) * self.output_std + self.output_mean
 
 
 @njit(cache=True)
