@@ -126,8 +126,12 @@ def separate_side_by_side(paths: list, widths: list, closed: list, mask: np.ndar
             if j == i or len(b) < 8:
                 continue
             w_min, w_max = min(widths[i], widths[j]), max(widths[i], widths[j])
+            min_run = int(np.ceil(min_run_factor * w_max))
+            # every fourth point first: most pairs of paths never run together
+            if np.count_nonzero(np.isfinite(nearest_distances(b, a[::4], coincide_factor * w_min))) < min_run // 4:
+                continue
             d = nearest_distances(b, a, coincide_factor * w_min)
-            for lo_i, hi_i in _runs(np.isfinite(d), int(np.ceil(min_run_factor * w_max))):
+            for lo_i, hi_i in _runs(np.isfinite(d), min_run):
                 between = [np.asarray(p, float) for ci, cj, p in crossings if {ci, cj} == {i, j}]
                 colours = None
                 if colours_at is not None:
