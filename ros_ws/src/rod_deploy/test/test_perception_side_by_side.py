@@ -53,8 +53,8 @@ def test_paths_down_the_middle_of_two_rods_side_by_side_are_moved_onto_each_rod(
 
 
 def test_a_rod_ending_alongside_another_is_put_on_the_side_away_from_the_others_arm():
-    # rod B ends lying against A (its end inside the strip): its side is opposite to where A leaves... here A
-    # runs on along row 100 at both ends, B's arm leaves upwards on the left: B lies above
+    # rod B ends lying against A's upper side (its path ends inside the strip): its side is seen where the rods
+    # part on the left, B's arm leaving upwards; A runs on along row 100 past B's end
     rod_b = _poly((40, 20), (92, 70), (92, 130))
     path_b = _poly((40, 20), (88, 62), (96, 72), (96, 130))
     path_a = _poly((100, 10), (100, 62), (96, 72), (96, 130), (100, 140), (100, 230))
