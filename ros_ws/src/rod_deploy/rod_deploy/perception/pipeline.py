@@ -37,8 +37,10 @@ sub-pixel refinement.
  6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
     or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), a small self loop whose
-    hole the mask closes re-traced round its blob (:func:`~.filled_loops.trace_filled_loop`), arc-length
-    resampling every ``step_px``.
+    hole the mask closes re-traced round its blob (:func:`~.filled_loops.trace_filled_loop`); where two
+    paths run together down one strip of the mask as wide as both rods (rods lying side by side along a
+    stretch), each moved onto its own rod, against the strip's edge on its side
+    (:func:`~.side_by_side.separate_side_by_side`); arc-length resampling every ``step_px``.
 
 Objects are numbered by decreasing length. An open path starts at its end with the smaller column
 (leftmost; then the upper one), a closed path at its leftmost point, running counter-clockwise as seen in
@@ -60,6 +62,7 @@ from rod_deploy.perception.crossing_order import colour_sampler, decide_crossing
 from rod_deploy.perception.filled_loops import prune_blob_spurs, trace_filled_loop
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
                                                 estimate_background, foreground_evidence, segment)
+from rod_deploy.perception.side_by_side import separate_side_by_side
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
 from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
@@ -223,7 +226,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     evidence = seg.evidence                # uint8: sampled bilinearly as float32 (no float copy)
     floor = 0.25 * seg.threshold
-    objects = []
+    paths, widths = [], []
     for obj in traced:
         if config.refine:
             refined = cl.refine(obj.points, obj.closed, evidence, w, floor,
@@ -242,8 +245,14 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
             pts = cl.smooth(cl.resample(obj.points, 1.0), config.smoothing_sigma_px, obj.closed)
             width = w
             refined = cl.RefinedPath(pts, w, obj.closed, np.full(len(pts), np.nan))
-        pts = cl.resample(refined.points, config.step_px * scale)
-        objects.append(PerceivedObject(pts / scale, width / scale, obj.closed))
+        paths.append(refined.points)
+        widths.append(width)
+    if config.refine and len(paths) > 1:
+        paths = separate_side_by_side(paths, widths, [o.closed for o in traced], seg.mask, colour_full.at,
+                                      [(d.objects[0], d.objects[1], d.position) for d in decisions
+                                       if d.objects[0] != d.objects[1]], config.min_colour_separation)
+    objects = [PerceivedObject(cl.resample(p, config.step_px * scale) / scale, width / scale, obj.closed)
+               for p, width, obj in zip(paths, widths, traced)]
     t5 = time.perf_counter()
     timings['centreline'] = (t5 - t4) * 1e3
 
