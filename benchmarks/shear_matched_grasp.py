@@ -129,6 +129,30 @@ def main():
             row = f'failed ({str(exc)[:60]}) | - | {sl:.2f} | -'
         lines.append(f'| {kap:g} | {n_free:+.4f} | {row} |')
         print(lines[-1], flush=True)
+    lines += ['', '## 4. The smallest horizontal force along the tangential family (gripper moment free), ls_bar 12', '',
+              'On a laid circle the rod needs no horizontal force at q_C (n0_y = -kappa\' = 0, n0_x = 0): whatever '
+              'friction must absorb there is |n0_h|. The family n0_y -> (n0_x, n0_y) is scanned from the moment-free '
+              'grasp towards n0_y = 0 (20 steps) and its smallest |n0_h| reported, with the floor |kappa| / |r_g| '
+              '(the balance kappa = x_g n0_y - y_g n0_x with n0_h along (x_g, -y_g), r_g the gripper\'s horizontal '
+              'offset at that grasp).', '',
+              '| kappa_bar | |n0_h| moment free | smallest |n0_h| on the family | at n0_y | n0_x | kappa / |r_g| there |',
+              '|---|---|---|---|---|---|']
+    for kap in (0.25, 0.5, 1.0, 2.0):
+        g = optimal_grasp(12.0, kap, np.inf, check_stability=False)
+        n_free = float(g.solution.Y[0, 10])
+        best, cur = (abs(n_free), n_free, 0.0, kap / np.hypot(*g.solution.gripper_position[:2])), g.solution
+        for f in np.linspace(n_free, 0.0, 21)[1:]:
+            try:
+                cur = solve_suspended_rod('shear', 12.0, np.inf, g.solution.kappa_bar, guess=cur, s=cur.s,
+                                          lateral_force=f, shear_release='tangential')
+            except BVPError:
+                break
+            nh = float(np.hypot(cur.Y[0, 9], cur.Y[0, 10]))
+            if nh < best[0]:
+                best = (nh, f, float(cur.Y[0, 9]), kap / np.hypot(*cur.gripper_position[:2]))
+        lines.append(f'| {kap:g} | {abs(n_free):.4f} | {best[0]:.4f} | {best[1]:+.4f} | {best[2]:+.4f} | '
+                     f'{best[3]:.4f} |')
+        print(lines[-1], flush=True)
     lines += ['', f'CPU time: {time.process_time() - c0:.0f} s.']
     out = results_path(args, 'shear_matched_grasp.md')
     out.write_text('\n'.join(lines) + '\n')

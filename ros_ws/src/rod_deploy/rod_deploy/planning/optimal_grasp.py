@@ -277,16 +277,70 @@ def shear_matched_grasp(ls_bar, kappa_bar, ks_bar, lateral_force, *, release='ta
     return grasp, moment_free
 
 
-def shear_matched_sequence(inputs, lateral_forces, release='tangential', progress=None):
-    """Shear-matched grasps along a pattern: ``inputs`` rows (ls_bar, ks_bar, kappa_bar) as for
-    :func:`grasp_sequence`, ``lateral_forces`` the n0_y of each node; each node continued from the previous one."""
-    out, prev, prev_free = [], None, None
+def closest_shear_grasp(ls_bar, kappa_bar, ks_bar, lateral_force, *, moment_free=None, steps=8):
+    """The moment-free grasp (gripper by position) whose horizontal force at q_C is closest to the laid rod's need
+    (n0_x, n0_y) = (0, ``lateral_force``): the exact match is out of reach (the tangential release needs |n0_x|
+    0.36-0.5 for it and is singular at kappa_bar -> 0, the gripper releases are singular for a vertical hanging part;
+    ``benchmarks/shear_matched_grasp.py``), so the tangential family n0_y -> (n0_x, n0_y) is scanned by continuation
+    from the moment-free grasp towards n0_y = lateral_force in ``steps`` steps (stopping where it fails) and the
+    mismatch |(n0_x, n0_y - lateral_force)| minimised (the best step refined by a parabola through its neighbours).
+    Returns (grasp, moment-free grasp); the moment-free grasp itself when it is the closest."""
+    _validate(ls_bar, kappa_bar, ks_bar)
+    if moment_free is None:
+        moment_free = optimal_grasp(ls_bar, kappa_bar, ks_bar, check_stability=False)
+    sol0 = moment_free.solution
+    f0 = float(sol0.Y[0, 10])
+    if abs(lateral_force - f0) < 1e-6:
+        return moment_free, moment_free
+    ks = np.inf if ks_bar is None else float(ks_bar)
+
+    def mismatch(sol):
+        return float(np.hypot(sol.Y[0, 9], sol.Y[0, 10] - lateral_force))
+
+    def solve(f, guess):
+        return solve_suspended_rod('shear', ls_bar, ks, sol0.kappa_bar, guess=guess, s=guess.s, lateral_force=f,
+                                   shear_release='tangential')
+
+    fs, sols = [f0], [sol0]
+    for f in np.linspace(f0, lateral_force, steps + 1)[1:]:
+        try:
+            sols.append(solve(f, sols[-1]))
+            fs.append(f)
+        except BVPError:
+            break
+    d = [mismatch(x) for x in sols]
+    k = int(np.argmin(d))
+    if k == 0:
+        return moment_free, moment_free
+    best = sols[k]
+    if k + 1 < len(sols):            # a parabola through the best step and its neighbours
+        a, b, c = d[k - 1], d[k], d[k + 1]
+        den = a - 2 * b + c
+        if den > 0:
+            f = fs[k] + 0.5 * (fs[k + 1] - fs[k]) * (a - c) / den
+            try:
+                trial = solve(f, best)
+                if mismatch(trial) < d[k]:
+                    best = trial
+            except BVPError:
+                pass
+    grasp = grasp_from_solution(best, 0.0, None, 'shear_closest', kappa_bar)
+    grasp.force_residual = max(float(np.max(np.abs(shear_residual(best, float(best.Y[0, 10]), 'tangential')))),
+                               best.residual_norm)
+    return grasp, moment_free
+
+
+def closest_shear_sequence(inputs, lateral_forces, progress=None):
+    """:func:`closest_shear_grasp` along a pattern: ``inputs`` rows (ls_bar, ks_bar, kappa_bar) as for
+    :func:`grasp_sequence`, ``lateral_forces`` the n0_y the laid rod needs at each node; the moment-free grasps are
+    continued from node to node and each node's family scanned from its own."""
+    out, prev_free = [], None
     for row, f in zip(inputs, lateral_forces):
         ls, ks, kap = (float(v) for v in row)
         free = optimal_grasp(ls, kap, ks, guess=prev_free, check_stability=False)
-        g, _ = shear_matched_grasp(ls, kap, ks, float(f), release=release, guess=prev, moment_free=free)
+        g, _ = closest_shear_grasp(ls, kap, ks, float(f), moment_free=free)
         out.append(g)
-        prev, prev_free = g, free
+        prev_free = free
         if progress is not None:
             progress(len(out))
     return out

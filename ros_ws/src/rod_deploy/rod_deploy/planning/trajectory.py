@@ -74,9 +74,10 @@ METHODS = ('nn', 'numeric', 'intuitive')
 STARTS = ('tangent', 'achievable')
 PLANNED_CURVES = ('closest', 'spread')
 #: the lateral force each node's grasp applies to the laid rod at q_C: 'moment_free' the optimal grasp's (an output,
-#: about kappa_bar / 2.3), 'matched' the laid planned curve's shear EI kappa' (numeric method only; issue #10,
-#: ``optimal_grasp.shear_matched_grasp`` with the tangential force released, benchmarks/shear_matched_grasp.py)
-SHEARS = ('moment_free', 'matched')
+#: about -kappa_bar / 2.3), 'closest' the grasp of the moment-free family with n0_x released whose horizontal force is
+#: closest to what the laid planned curve needs, (0, EI kappa') (numeric method only; issue #10,
+#: ``optimal_grasp.closest_shear_grasp``; the exact match is out of reach, benchmarks/shear_matched_grasp.py)
+SHEARS = ('moment_free', 'closest', 'least_force')
 #: the table friction the 'achievable' start assumes when neither the settings nor the rod give one (medium)
 DEFAULT_FRICTION = 0.5
 #: the largest ``PlannerSettings.friction_share`` the start may count on (the bound is an estimate: the simulated rod
@@ -133,7 +134,8 @@ class PlannerSettings:
     #: predicts (``bend_drag.py``); False: plan for the pattern itself
     drag_compensation: bool = True
     #: the lateral force the grasps apply at q_C (``SHEARS``): 'moment_free' (the paper's optimal grasp) or
-    #: 'matched' (the shear the laid planned curve needs, n0_y = d kappa_bar / d(s / L_gb); method 'numeric')
+    #: 'closest' (the horizontal force closest to the laid planned curve's need, n0_x = 0 and
+    #: n0_y = d kappa_bar / d(s / L_gb); method 'numeric')
     shear: str = 'moment_free'
 
     def validate(self):
@@ -143,8 +145,8 @@ class PlannerSettings:
             raise PlanningError(f'unknown start {self.start!r} (one of {", ".join(STARTS)})')
         if self.shear not in SHEARS:
             raise PlanningError(f'unknown shear {self.shear!r} (one of {", ".join(SHEARS)})')
-        if self.shear == 'matched' and self.method != 'numeric':
-            raise PlanningError(f"shear 'matched' needs method 'numeric' (the network gives moment-free grasps only), "
+        if self.shear != 'moment_free' and self.method != 'numeric':
+            raise PlanningError(f"shear {self.shear!r} needs method 'numeric' (the network gives moment-free grasps only), "
                                 f"got method {self.method!r}")
         if self.planned_curve not in PLANNED_CURVES:
             raise PlanningError(f'unknown planned_curve {self.planned_curve!r} (one of {", ".join(PLANNED_CURVES)})')
@@ -378,16 +380,16 @@ def check_friction_holds(pattern: ProcessedPattern, rod: RodDescription, frictio
 
 def grasps(inputs, method, progress=None, lateral_forces=None):
     """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs; ``lateral_forces`` (method 'numeric'): the
-    n0_y each node's grasp applies at q_C (shear-matched grasps), None: the moment-free optimal grasps."""
+    n0_y the laid rod needs at each node's q_C (``closest_shear_grasp``), None: the moment-free optimal grasps."""
     if lateral_forces is not None:
         if method != 'numeric':
-            raise PlanningError('shear-matched grasps need the numeric method')
-        from .optimal_grasp import shear_matched_sequence
+            raise PlanningError('grasps for a prescribed shear need the numeric method')
+        from .optimal_grasp import closest_shear_sequence
         from .suspended_rod import BVPError
         try:
-            seq = shear_matched_sequence(inputs, lateral_forces, progress=progress)
+            seq = closest_shear_sequence(inputs, lateral_forces, progress=progress)
         except (BVPError, RuntimeError, ValueError) as e:
-            raise PlanningError(f'the shear-matched grasp solver failed along the pattern: {e}') from None
+            raise PlanningError(f'the grasp solver failed along the pattern: {e}') from None
         return np.array([g.position for g in seq]), np.array([g.rotvec for g in seq])
     if method == 'nn':
         from .neural_controller import load_grasp_network
@@ -496,9 +498,11 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
                 template = None
     t1 = time.perf_counter()
     lateral = None
-    if settings.shear == 'matched':
+    if settings.shear == 'closest':
         # the laid planned curve's shear at q_C: m_z' = -n_perp with m_z = -kappa_bar (the released sign)
         lateral = np.gradient(inputs[:, 2], pattern.s / rod.gravito_bending_length_m)
+    elif settings.shear == 'least_force':
+        lateral = np.zeros(len(inputs))
     qbar, rotvec = grasps(inputs, settings.method, progress, lateral)
     t2 = time.perf_counter()
     Lgb = rod.gravito_bending_length_m
