@@ -165,9 +165,9 @@ def main():
     ap.add_argument('--friction-share', type=float, default=None,
                     help="share c of the friction the friction-limited start counts on (PlannerSettings.friction_share;"
                          " default: the planner's; the refusal check counts on min(c, 1))")
-    ap.add_argument('--shear', default=None, choices=('moment_free', 'closest', 'least_force'),
+    ap.add_argument('--shear', default=None, choices=('moment_free', 'least_force'),
                     help="the lateral force the grasps apply at the connective node (PlannerSettings.shear; "
-                         "'closest' needs --methods numeric; default: the planner's)")
+                         "'least_force' needs --methods numeric; default: the planner's)")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')

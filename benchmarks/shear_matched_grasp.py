@@ -63,7 +63,8 @@ def main():
     add_results_argument(ap)
     args = ap.parse_args()
     c0 = time.process_time()
-    lines = ['# Shear-matched grasps: can the grasp supply the laid rod\'s shear? `python benchmarks/shear_matched_grasp.py`',
+    lines = ['# Shear-matched grasps: can the grasp supply the laid rod\'s shear? '
+             '`python benchmarks/shear_matched_grasp.py`',
              '', f'Machine: {platform.machine()}, {os.cpu_count()} cores (shared, load {os.getloadavg()[0]:.1f}). '
              'Inextensible rod; BVP of `planning/suspended_rod.py` (kind `shear`), units L_gb, EI / L_gb^2, EI / L_gb. '
              'n0: force of the suspended part on the laid part at q_C (x tangent, y = z x x); kappa_bar in the '
@@ -129,13 +130,15 @@ def main():
             row = f'failed ({str(exc)[:60]}) | - | {sl:.2f} | -'
         lines.append(f'| {kap:g} | {n_free:+.4f} | {row} |')
         print(lines[-1], flush=True)
-    lines += ['', '## 4. The smallest horizontal force along the tangential family (gripper moment free), ls_bar 12', '',
+    lines += ['', '## 4. The smallest horizontal force along the tangential family (gripper moment free), ls_bar 12',
+              '',
               'On a laid circle the rod needs no horizontal force at q_C (n0_y = -kappa\' = 0, n0_x = 0): whatever '
               'friction must absorb there is |n0_h|. The family n0_y -> (n0_x, n0_y) is scanned from the moment-free '
               'grasp towards n0_y = 0 (20 steps) and its smallest |n0_h| reported, with the floor |kappa| / |r_g| '
               '(the balance kappa = x_g n0_y - y_g n0_x with n0_h along (x_g, -y_g), r_g the gripper\'s horizontal '
               'offset at that grasp).', '',
-              '| kappa_bar | |n0_h| moment free | smallest |n0_h| on the family | at n0_y | n0_x | kappa / |r_g| there |',
+              '| kappa_bar | |n0_h| moment free | smallest |n0_h| on the family | at n0_y | n0_x | '
+              'kappa / |r_g| there |',
               '|---|---|---|---|---|---|']
     for kap in (0.25, 0.5, 1.0, 2.0):
         g = optimal_grasp(12.0, kap, np.inf, check_stability=False)

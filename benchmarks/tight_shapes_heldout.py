@@ -136,7 +136,8 @@ def main():
                     help="comma-separated PlannerSettings.friction_share of the friction-limited start (e.g. 1,1.5; "
                          "default: the planner's), each combined with each planned curve; the row's planned curve is "
                          "marked \", c X\" when given")
-    ap.add_argument('--method', default='nn', choices=('nn', 'numeric'), help='the grasp solver (PlannerSettings.method)')
+    ap.add_argument('--method', default='nn', choices=('nn', 'numeric'),
+                    help='the grasp solver (PlannerSettings.method)')
     ap.add_argument('--shears', default=None,
                     help="comma-separated PlannerSettings.shear (e.g. moment_free,least_force; not moment_free needs "
                          "--method numeric; default: the planner's), each combined with each planned curve; the row's "

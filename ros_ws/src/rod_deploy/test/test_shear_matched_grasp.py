@@ -1,10 +1,19 @@
 """Shear-matched grasps (suspended_rod kind 'shear', optimal_grasp.shear_matched_grasp): the grasp with a prescribed
-lateral force at the connective node, and the physical limit on it (benchmarks/shear_matched_grasp.py)."""
+lateral force at the connective node, the physical limit on it (benchmarks/shear_matched_grasp.py), and the
+least-force grasp the planner can use (PlannerSettings.shear 'least_force')."""
 import numpy as np
 import pytest
 
-from rod_deploy.planning.optimal_grasp import elastic_stability, optimal_grasp, shear_matched_grasp
+from rod_deploy.deployment.metrics import eq17_error
+from rod_deploy.deployment.simulate import SimulationSettings, simulate_deployment
+from rod_deploy.planning.optimal_grasp import (closest_shear_grasp, elastic_stability, optimal_grasp,
+                                               shear_matched_grasp)
+from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.suspended_rod import SHEAR_RELEASES, BVPError, solve_suspended_rod
+from rod_deploy.planning.trajectory import PlannerSettings, PlanningError, plan_trajectory
+
+#: e_mean bound of the short least-force deployment (measured 0.051 cm, the moment-free plan 0.060 cm)
+BOUND_CM = 0.1
 
 
 def _moment_balance(sol):
@@ -72,3 +81,63 @@ def test_bad_inputs_are_refused():
     with pytest.raises(ValueError):
         shear_matched_grasp(3.0, 0.5, np.inf, np.nan)
     assert set(SHEAR_RELEASES) == {'gripper_out_of_plane', 'gripper_in_plane', 'tangential'}
+
+
+# ------------------------------------------------------------------ the least-force grasp and the planner option
+@pytest.mark.parametrize('kappa_bar,floor', [(1.0, 0.45), (0.5, 0.205)])
+def test_least_force_grasp_lowers_the_horizontal_force_at_the_connective_node(kappa_bar, floor):
+    # benchmarks/results/shear_matched_grasp.md section 4: 0.567 -> 0.419 (kappa_bar 1), 0.217 -> 0.199 (0.5)
+    free = optimal_grasp(12.0, kappa_bar, np.inf, check_stability=False)
+    g, _ = closest_shear_grasp(12.0, kappa_bar, np.inf, 0.0, moment_free=free)
+    n_free, n = free.solution.Y[0, 9:11], g.solution.Y[0, 9:11]
+    assert abs(n_free[0]) < 1e-9
+    assert np.hypot(*n) < floor < np.hypot(*n_free)
+    assert np.linalg.norm(g.solution.m[-1]) < 1e-8                      # the gripper stays moment free
+    assert g.solution.Y[0, 8] == pytest.approx(-kappa_bar, abs=1e-9)     # the pattern's moment at q_C
+    assert abs(_moment_balance(g.solution)) < 1e-6
+    assert elastic_stability(g.solution)['stable'] is True
+
+
+def test_least_force_grasp_of_a_straight_pattern_is_the_moment_free_one():
+    free = optimal_grasp(12.0, 0.0, np.inf, check_stability=False)
+    g, _ = closest_shear_grasp(12.0, 0.0, np.inf, 0.0, moment_free=free)
+    assert g is free
+
+
+def test_planner_refuses_a_prescribed_shear_without_the_numeric_solver():
+    with pytest.raises(PlanningError, match='numeric'):
+        PlannerSettings(method='nn', shear='least_force').validate()
+    with pytest.raises(PlanningError, match='shear'):
+        PlannerSettings(method='numeric', shear='twisted').validate()
+
+
+def test_short_least_force_deployment_is_laid_in_our_der():
+    # a 0.3 m rod (#3's L_gb): 5 cm straight, then 7 cm of an arc of radius 8 cm (test_correction.py's pattern)
+    rod = rod_description_from_dict({'length': 0.3, 'radius': 0.002, 'L_gb': 0.034, 'friction': 0.5})
+    a = np.linspace(0.0, 0.07 / 0.08, 30)
+    pattern = np.vstack([np.column_stack([np.linspace(0, 0.05, 11)[:-1], np.zeros(10)]),
+                         np.column_stack([0.05 + 0.08 * np.sin(a), 0.08 * (1 - np.cos(a))])])
+    fast = SimulationSettings(edge_length_m=0.01, dt_s=0.1, max_gripper_speed_m_s=0.03, contact_tolerance_m=5e-4)
+    plan = plan_trajectory(pattern, rod, PlannerSettings(method='numeric', shear='least_force'))
+    free = plan_trajectory(pattern, rod, PlannerSettings(method='numeric'))
+    assert np.max(np.abs(plan.grasp_position - free.grasp_position)) > 1e-3    # the grasps did change
+    res = simulate_deployment(plan.t, plan.position, plan.quaternion, rod, fast)
+    assert eq17_error(pattern, res.deployed_xy)['e_mean_cm'] < BOUND_CM
+
+
+def test_cli_plan_shear_flag(tmp_path, capsys):
+    import json
+
+    from rod_deploy.cli.main import main as cli
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.3\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    pts = tmp_path / 'p.txt'
+    a = np.linspace(0.0, 0.07 / 0.08, 30)                # 5 cm straight, then 7 cm of an arc of radius 8 cm
+    np.savetxt(pts, np.vstack([np.column_stack([np.linspace(0, 0.05, 11)[:-1], np.zeros(10)]),
+                               np.column_stack([0.05 + 0.08 * np.sin(a), 0.08 * (1 - np.cos(a))])]))
+    out = tmp_path / 't.csv'
+    assert cli(['plan', '--pattern', str(pts), '--rod', str(rod), '--shear', 'least_force', '--out', str(out)]) == 2
+    assert 'numeric' in capsys.readouterr().err and not out.exists()
+    assert cli(['plan', '--pattern', str(pts), '--rod', str(rod), '--method', 'numeric', '--shear', 'least_force',
+                '--quiet', '--out', str(out)]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])['shear'] == 'least_force' and out.exists()
