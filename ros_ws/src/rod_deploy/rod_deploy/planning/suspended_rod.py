@@ -31,9 +31,9 @@ Two problem types share one discretisation:
   tangent n0_x is released (``'tangential'``).  At lateral_force equal to the ``optimal`` solution's n0_y each is
   that solution.  Why the lateral force is hard to prescribe: the moment of the suspended part about the vertical
   through q_C balances, kappa_bar - m_z(ls) = x_g n0_y - y_g n0_x ((x_g, y_g) the gripper's horizontal offset), and
-  once the hanging part turns vertical (ls_bar >~ 5) a twist-free rod carries no moment about the vertical there,
-  m_z = 0, so no gripper moment changes n0_y: the gripper releases are singular there; the tangential release is
-  singular at kappa_bar = 0 (y_g = 0).  Measured in ``benchmarks/shear_matched_grasp.py``.
+  once the hanging part turns vertical (ls_bar >= 8 measured) a twist-free rod carries no moment about the vertical
+  there, m_z = 0, so no gripper moment changes n0_y: the gripper releases are singular there; the tangential release
+  is singular at kappa_bar = 0 (y_g = 0).  Measured in ``benchmarks/shear_matched_grasp.py``.
 * ``forward``: Eq. 7 for a given gripper position: clamped at q_C (r(0) = 0, t(0) = x), r(ls) = q_M, m(ls) = 0;
   the clamp force F_ext = -n0 and moment m(0) are outputs (used by Alg. 1-3 and the stability check).
 
