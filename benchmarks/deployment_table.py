@@ -128,7 +128,8 @@ def write_table(out, rows, t_all, args):
              'compensation at bends (PlannerSettings.drag_compensation): '
              f'{args.drag_compensation or ("on" if PlannerSettings().drag_compensation else "off")}; friction share '
              f'of the start (PlannerSettings.friction_share): '
-             f'{args.friction_share if args.friction_share is not None else PlannerSettings().friction_share:g}.', '',
+             f'{args.friction_share if args.friction_share is not None else PlannerSettings().friction_share:g}; '
+             f'shear at q_C (PlannerSettings.shear): {args.shear or PlannerSettings().shear}.', '',
              '| rod | friction | pattern | planner | e_mean cm | sigma cm | coverage | sim s | note |',
              '|---|---|---|---|---|---|---|---|---|']
     for r in rows:
@@ -164,6 +165,9 @@ def main():
     ap.add_argument('--friction-share', type=float, default=None,
                     help="share c of the friction the friction-limited start counts on (PlannerSettings.friction_share;"
                          " default: the planner's; the refusal check counts on min(c, 1))")
+    ap.add_argument('--shear', default=None, choices=('moment_free', 'least_force'),
+                    help="the lateral force the grasps apply at the connective node (PlannerSettings.shear; "
+                         "'least_force' needs --methods numeric; default: the planner's)")
     ap.add_argument('--plots', action='store_true')
     ap.add_argument('--friction-velocity', type=float, default=SimulationSettings.friction_velocity_m_s,
                     help='regularisation velocity of Coulomb friction [m/s] (creep speed scale)')
@@ -188,7 +192,8 @@ def main():
              **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
              **({'free_start_point': args.start_point == 'free'} if args.start_point else {}),
              **({'drag_compensation': args.drag_compensation == 'on'} if args.drag_compensation else {}),
-             **({'friction_share': args.friction_share} if args.friction_share is not None else {})}
+             **({'friction_share': args.friction_share} if args.friction_share is not None else {}),
+             **({'shear': args.shear} if args.shear else {})}
     patterns = all_patterns(args.patterns)
     methods = args.methods.split(',')
     frictions = args.friction.split(',')

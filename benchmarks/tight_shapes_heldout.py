@@ -5,7 +5,8 @@ with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
 
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
         [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] \
-        [--drag-compensation off,on] [--friction-shares 1,1.5] [--plan-only] [--commit-results]
+        [--drag-compensation off,on] [--friction-shares 1,1.5] [--method nn|numeric]
+        [--shears moment_free,least_force] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
@@ -135,6 +136,12 @@ def main():
                     help="comma-separated PlannerSettings.friction_share of the friction-limited start (e.g. 1,1.5; "
                          "default: the planner's), each combined with each planned curve; the row's planned curve is "
                          "marked \", c X\" when given")
+    ap.add_argument('--method', default='nn', choices=('nn', 'numeric'),
+                    help='the grasp solver (PlannerSettings.method)')
+    ap.add_argument('--shears', default=None,
+                    help="comma-separated PlannerSettings.shear (e.g. moment_free,least_force; not moment_free needs "
+                         "--method numeric; default: the planner's), each combined with each planned curve; the row's "
+                         "planned curve is marked \", shear X\" when given")
     ap.add_argument('--plan-only', action='store_true', help='plan only (no simulation): a smoke test')
     ap.add_argument('--out-name', default=None)
     add_results_argument(ap)
@@ -150,19 +157,21 @@ def main():
     start_points = args.start_points.split(',') if args.start_points else [None]
     drags = args.drag_compensation.split(',')
     shares = [float(c) for c in args.friction_shares.split(',')] if args.friction_shares else [None]
+    shears = args.shears.split(',') if args.shears else [None]
     if any(d not in ('on', 'off') for d in drags):
         raise SystemExit(f'--drag-compensation: on, off or off,on, got {args.drag_compensation!r}')
     simulated = {}
     for name, pts, what in shapes:
-        for pc, sp, drag, c in ((pc, sp, d, c) for pc in args.planned_curves.split(',') for sp in start_points
-                                for d in drags for c in shares):
+        for pc, sp, drag, c, sh in ((pc, sp, d, c, sh) for pc in args.planned_curves.split(',')
+                                    for sp in start_points for d in drags for c in shares for sh in shears):
             cpu = time.process_time()
             extra = {**({} if sp is None else {'free_start_point': sp == 'free'}),
-                     **({} if c is None else {'friction_share': c})}
+                     **({} if c is None else {'friction_share': c}),
+                     **({} if sh is None else {'shear': sh})}
             label = ((pc if sp is None else f'{pc}, {sp} start point') + (' +drag' if drag == 'on' else '')
-                     + ('' if c is None else f', c {c:g}'))
+                     + ('' if c is None else f', c {c:g}') + ('' if sh is None else f', shear {sh}'))
             try:
-                plan = plan_trajectory(pts, rod, PlannerSettings(planned_curve=pc, friction=0.5,
+                plan = plan_trajectory(pts, rod, PlannerSettings(method=args.method, planned_curve=pc, friction=0.5,
                                                                  drag_compensation=drag == 'on', **extra))
             except ValueError as e:
                 rows.append((name, what, label, None, None, None, f'refused: {str(e)[:100]}'))
@@ -193,7 +202,8 @@ def write(out, rows, args, t_all):
     lines = [f'# Held-out tight shapes, `python benchmarks/tight_shapes_heldout.py --seed {args.seed}`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (load average '
              f'{os.getloadavg()[0]:.1f} at writing); {time.perf_counter() - t_all:.0f} s in all. Rod #3 (L_gb 3.4 cm, '
-             '0.89 m), friction 0.5, our DER with the defaults of `rod-deploy simulate`, planner nn with the '
+             '0.89 m), friction 0.5, our DER with the defaults of `rod-deploy simulate`, planner '
+             f'{args.method} with the '
              'friction-limited start; Eq. 17 e_mean in cm (N = 50). "planned off": the planned curve\'s largest '
              'distance from the pattern (plan\'s `planned_curve_max_deviation_m`). The shapes are drawn by '
              f'`tight_shapes` with seed {args.seed}, a seed not used while developing the planner change.', '',

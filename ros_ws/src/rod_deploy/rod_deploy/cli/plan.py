@@ -3,7 +3,7 @@
     rod-deploy plan --pattern P --rod ROD.yaml [--method nn|numeric|intuitive] --out traj.csv [--plot traj.png]
                     [--m-per-px S [--origin ROW COL] | --homography H.txt] [--object K]
                     [--step 0.005] [--smoothing 0.0005] [--speed 0.01] [--start tangent|achievable]
-                    [--max-kappa-bar-rate R] [--refine N]
+                    [--max-kappa-bar-rate R] [--shear moment_free|least_force] [--refine N]
 
 P: a points file (x y [z] per line, metres, table frame) or an image of a drawn stroke / a photographed rod with
 its mapping (as for ``rod-deploy perceive``). Writes the contract's trajectory CSV (t,x,y,z,qx,qy,qz,qw: table
@@ -14,8 +14,10 @@ long for the rod, too sharp, a bend the table friction cannot hold so close to t
 NaN, repeated points) gives one error line naming the point, exit 2, and no file. ``--start achievable`` (the
 default): the start laid along the curve friction can hold near the free end (``planning/achievable_start.py``; the
 rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every node on the pattern itself.
-``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``). Bends where
-the table cannot hold the touch-down point are planned moved outwards by the drag predicted there
+``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``). ``--shear
+least_force`` (numeric method; 30-80 s a pattern): each grasp applies the smallest horizontal force a moment-free
+gripper can at the connective node, a force along the tangent allowed (``optimal_grasp.closest_shear_grasp``).
+Bends where the table cannot hold the touch-down point are planned moved outwards by the drag predicted there
 (``planning/bend_drag.py``; the JSON line's ``drag_compensation_max_offset_m``). The JSON line's
 ``planning_time_s`` is this plan's; ``startup_s`` the one-off loading before it (the network's weights, the compiled
 kernels from numba's cache: 0.4-0.6 s per process here, ``planning.trajectory.warm_up``).
@@ -72,6 +74,10 @@ def register(subparsers):
                         'pose above it) leave the pattern\'s first point where that brings a curved start nearer '
                         'the pattern (letter C, rod #3: 6.8 mm); off by default: CONTRACTS.md starts a deployment '
                         'with the free end at the pattern\'s first point')
+    p.add_argument('--shear', choices=('moment_free', 'least_force'), default=None,
+                   help='moment_free (default): the paper\'s optimal grasps (no force along the tangent); '
+                        'least_force (--method numeric): the grasps with the smallest horizontal force at the '
+                        'connective node')
     p.add_argument('--refine', type=int, default=None, metavar='N',
                    help='refine the plan with N simulations of our DER (N >= 2: the unrefined plan and at least one '
                         'template; default off)')
@@ -101,6 +107,7 @@ def run(args) -> int:
                                    speed_m_s=args.speed, **({'start': args.start} if args.start else {}),
                                    **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
                                    free_start_point=args.free_start_point,
+                                   **({'shear': args.shear} if args.shear else {}),
                                    **({'max_kappa_bar_rate': args.max_kappa_bar_rate}
                                       if args.max_kappa_bar_rate is not None else {}))
         startup_s = warm_up(rod, settings)
@@ -128,6 +135,7 @@ def run(args) -> int:
                'planning_time_s': round(plan.timings_s['total'], 4), 'startup_s': round(startup_s, 4)}
     if plan.method != 'intuitive':                      # the intuitive baseline follows the pattern as given
         summary['start'] = settings.start
+        summary['shear'] = settings.shear
         replaced_m, dev_m = plan.start_replacement()
         summary['start_replaced_m'] = round(replaced_m, 4)
         summary['start_max_deviation_m'] = round(dev_m, 4)

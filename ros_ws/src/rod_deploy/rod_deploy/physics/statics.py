@@ -35,8 +35,12 @@ def rod_from_curve(points, n_edges, params, arc_length=None, rest_length=None):
     return rod
 
 
-def clamped_suspended_rod(solution, n_edges=None, h=0.1):
-    """DER of a suspended-rod BVP solution (``planning.suspended_rod``): clamped at q_C, gripper position fixed."""
+def clamped_suspended_rod(solution, n_edges=None, h=0.1, gripper='position'):
+    """DER of a suspended-rod BVP solution (``planning.suspended_rod``): clamped at q_C, the gripper node held in
+    position (``gripper='position'``) or the last edge clamped, position, direction and twist (``'clamp'``: a
+    gripper that supplies a moment, the ``shear`` problem's gripper releases)."""
+    if gripper not in ('position', 'clamp'):
+        raise ValueError(f"gripper must be 'position' or 'clamp', got {gripper!r}")
     L = solution.ls_bar
     if n_edges is None:
         n_edges = int(np.clip(np.ceil(L / h), 30, 2000))
@@ -50,6 +54,9 @@ def clamped_suspended_rod(solution, n_edges=None, h=0.1):
     rod.clamp_node(1)
     rod.clamp_theta(0)
     rod.clamp_node(-1)
+    if gripper == 'clamp':
+        rod.clamp_node(-2)
+        rod.clamp_theta(rod.n_edges - 1)
     rod._commit(rod.state.q, rod.state.u, 0.0)
     return rod
 

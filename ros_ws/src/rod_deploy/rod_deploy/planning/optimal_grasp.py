@@ -38,7 +38,7 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .suspended_rod import BVPError, SuspendedRodSolution, default_mesh, solve_suspended_rod
+from .suspended_rod import SHEAR_RELEASES, BVPError, SuspendedRodSolution, default_mesh, solve_suspended_rod
 from .scaling import GRAVITY_NUMBER
 
 #: released solver's clamp edge in the published run: 232 edges over ls_bar = 13.68 (reproduces it to 5 digits)
@@ -202,6 +202,148 @@ def optimal_grasp(ls_bar, kappa_bar=0.0, ks_bar=np.inf, *, method='bvp', guess=N
         grasp.stable = grasp.stability['stable']
     grasp.time_s = time.perf_counter() - t0
     return grasp
+
+
+# ------------------------------------------------------------------------ shear-matched grasps (issue #10)
+def shear_residual(sol, lateral_force, release):
+    """The ``shear`` problem's boundary conditions at a solution: (n0_y - target, m_y(0), m_z(0) - kappa, and
+    n0_x, m_x(0) and the kept gripper moment for the gripper releases, m(ls) for ``'tangential'``); zero at a
+    shear-matched grasp."""
+    n0, m0, m1 = sol.Y[0, 9:12], sol.Y[0, 6:9], sol.Y[-1, 6:9]
+    common = [n0[1] - lateral_force, m0[1], m0[2] - sol.kappa_bar]
+    if release.startswith('gripper'):
+        return np.array(common + [n0[0], m0[0], m1[1 if release == 'gripper_out_of_plane' else 0]])
+    return np.array(common + list(m1))
+
+
+def shear_matched_grasp(ls_bar, kappa_bar, ks_bar, lateral_force, *, release='tangential', guess=None,
+                        moment_free=None, check_stability=False, max_step=0.05, min_step=1e-4):
+    """The grasp that applies the lateral force ``lateral_force`` = n0_y [k_b / L_gb^2] to the laid rod at q_C
+    (the ``shear`` problem of ``suspended_rod``; y = z_hat x tangent, the force of the suspended part on the laid
+    one), with the pattern's moment there; ``release``: the optimal-grasp condition given up for it
+    (``SHEAR_RELEASES``: a gripper moment out of or in the lift-off plane, or the force along the tangent).
+
+    Solved from ``guess`` (a previous shear-matched :class:`Grasp`, the pattern continuation) when that converges
+    on the same branch, else by continuation in n0_y (steps of at most ``max_step``, halved on failure) from the
+    moment-free optimal grasp (``moment_free``: that grasp when the caller has it).  Returns (grasp, moment-free
+    grasp); the grasp's ``clamp_force`` is F_ext = -n0, its ``force_residual`` the largest :func:`shear_residual`.
+    """
+    _validate(ls_bar, kappa_bar, ks_bar)
+    if release not in SHEAR_RELEASES:
+        raise ValueError(f'unknown release {release!r} (one of {", ".join(SHEAR_RELEASES)})')
+    if not np.isfinite(lateral_force):
+        raise ValueError(f'lateral_force must be finite, got {lateral_force}')
+    t0 = time.perf_counter()
+    ks = np.inf if ks_bar is None else float(ks_bar)
+    kb = _bvp_kappa(kappa_bar)
+    sol = None
+    if isinstance(guess, Grasp) and guess.solution is not None and guess.solution.kind == 'shear':
+        s = default_mesh(ls_bar)
+        try:
+            new = solve_suspended_rod('shear', ls_bar, ks, kb, guess=guess.solution, s=s,
+                                      lateral_force=lateral_force, shear_release=release)
+            reach = 2.0 + 15.0 * abs(guess.solution.kappa_bar - kb) + 1.5 * abs(guess.ls_bar - ls_bar) \
+                + 15.0 * abs(guess.clamp_force[1] + lateral_force)
+            if np.linalg.norm(new.gripper_position - guess.solution.gripper_position) <= reach:
+                sol = new
+        except BVPError:
+            pass
+    if moment_free is None:
+        moment_free = optimal_grasp(ls_bar, kappa_bar, ks_bar, check_stability=False)
+    if sol is None:
+        cur, f = moment_free.solution, float(moment_free.solution.Y[0, 10])
+        step = max_step
+        while True:
+            nxt = f + np.clip(lateral_force - f, -step, step)
+            try:
+                cur = solve_suspended_rod('shear', ls_bar, ks, kb, guess=cur, s=cur.s, lateral_force=nxt,
+                                          shear_release=release)
+                f = nxt
+                if f == lateral_force:
+                    break
+            except BVPError:
+                step /= 2
+                if step < min_step:
+                    raise BVPError(f'continuation in the lateral force stopped at n0_y = {f:.4g} '
+                                   f'(target {lateral_force:.4g}, ls_bar {ls_bar:.3g}, kappa_bar {kappa_bar:.3g}, '
+                                   f'release {release})') from None
+        sol = cur
+    grasp = grasp_from_solution(sol, 0.0, t0, f'shear_{release}', kappa_bar)
+    grasp.force_residual = max(float(np.max(np.abs(shear_residual(sol, lateral_force, release)))),
+                               sol.residual_norm)
+    if check_stability:
+        grasp.stability = elastic_stability(sol, gripper='clamp' if release.startswith('gripper') else 'position')
+        grasp.stable = grasp.stability['stable']
+    return grasp, moment_free
+
+
+def closest_shear_grasp(ls_bar, kappa_bar, ks_bar, lateral_force, *, moment_free=None, steps=8):
+    """The moment-free grasp (gripper by position) whose horizontal force at q_C is closest to the laid rod's need
+    (n0_x, n0_y) = (0, ``lateral_force``): the exact match is out of reach (the tangential release needs |n0_x|
+    0.36-0.5 for it and is singular at kappa_bar -> 0, the gripper releases are singular for a vertical hanging part;
+    ``benchmarks/shear_matched_grasp.py``), so the tangential family n0_y -> (n0_x, n0_y) is scanned by continuation
+    from the moment-free grasp towards n0_y = lateral_force in ``steps`` steps (stopping where it fails) and the
+    mismatch |(n0_x, n0_y - lateral_force)| minimised (the best step refined by a parabola through its neighbours).
+    Returns (grasp, moment-free grasp); the moment-free grasp itself when it is the closest."""
+    _validate(ls_bar, kappa_bar, ks_bar)
+    if moment_free is None:
+        moment_free = optimal_grasp(ls_bar, kappa_bar, ks_bar, check_stability=False)
+    sol0 = moment_free.solution
+    f0 = float(sol0.Y[0, 10])
+    if abs(lateral_force - f0) < 1e-6:
+        return moment_free, moment_free
+    ks = np.inf if ks_bar is None else float(ks_bar)
+
+    def mismatch(sol):
+        return float(np.hypot(sol.Y[0, 9], sol.Y[0, 10] - lateral_force))
+
+    def solve(f, guess):
+        return solve_suspended_rod('shear', ls_bar, ks, sol0.kappa_bar, guess=guess, s=guess.s, lateral_force=f,
+                                   shear_release='tangential')
+
+    fs, sols = [f0], [sol0]
+    for f in np.linspace(f0, lateral_force, steps + 1)[1:]:
+        try:
+            sols.append(solve(f, sols[-1]))
+            fs.append(f)
+        except BVPError:
+            break
+    d = [mismatch(x) for x in sols]
+    k = int(np.argmin(d))
+    if k == 0:
+        return moment_free, moment_free
+    best = sols[k]
+    if k + 1 < len(sols):            # a parabola through the best step and its neighbours
+        a, b, c = d[k - 1], d[k], d[k + 1]
+        den = a - 2 * b + c
+        if den > 0:
+            f = fs[k] + 0.5 * (fs[k + 1] - fs[k]) * (a - c) / den
+            try:
+                trial = solve(f, best)
+                if mismatch(trial) < d[k]:
+                    best = trial
+            except BVPError:
+                pass
+    grasp = grasp_from_solution(best, 0.0, None, 'shear_closest', kappa_bar)
+    grasp.force_residual = max(float(np.max(np.abs(shear_residual(best, float(best.Y[0, 10]), 'tangential')))),
+                               best.residual_norm)
+    return grasp, moment_free
+
+
+def closest_shear_sequence(inputs, lateral_forces, progress=None):
+    """:func:`closest_shear_grasp` along a pattern: ``inputs`` rows (ls_bar, ks_bar, kappa_bar) as for
+    :func:`grasp_sequence`, ``lateral_forces`` the n0_y the laid rod needs at each node; the moment-free grasps are
+    continued from node to node and each node's family scanned from its own."""
+    out, prev_free = [], None
+    for row, f in zip(inputs, lateral_forces):
+        ls, ks, kap = (float(v) for v in row)
+        free = optimal_grasp(ls, kap, ks, guess=prev_free, check_stability=False)
+        g, _ = closest_shear_grasp(ls, kap, ks, float(f), moment_free=free)
+        out.append(g)
+        prev_free = free
+        if progress is not None:
+            progress(len(out))
+    return out
 
 
 def _validate(ls_bar, kappa_bar, ks_bar):
@@ -437,18 +579,19 @@ def discover_manifold_boundary(ls_bar, ks_bar, angles, delta=1e-3, seed=None):
 
 
 # ------------------------------------------------------------------------------------------- stability (Fig. 5)
-def elastic_stability(sol, h=None, eigen=False):
+def elastic_stability(sol, h=None, eigen=False, gripper='position'):
     """Elastic stability of the suspended part at a grasp: the DER model of Eq. 7 (connective end clamped, gripper
     held by position) is re-equilibrated from the BVP solution by plain Newton and its Hessian on the free DOFs
     tested for positive definiteness (second variation).  The paper tests the same property by perturbation
     (Sec. 4.1.2, Fig. 5; :func:`perturbation_response`): a grasp at an indefinite equilibrium snaps.
+    ``gripper='clamp'`` holds the last edge (position, direction, twist): a grasp whose gripper supplies a moment.
     """
     from ..physics.statics import clamped_suspended_rod, equilibrium_stability, newton_equilibrium
     L = sol.ls_bar
     tol = 1e-7 * max(1.0, GRAVITY_NUMBER * L)                 # relative to the weight of the rod
     hs = [h] if h is not None else [max(0.05, L / 400.0), 0.1, 0.05]
     for hk in dict.fromkeys(hk for hk in hs if hk is None or hk <= hs[0]):
-        rod = clamped_suspended_rod(sol, h=hk)
+        rod = clamped_suspended_rod(sol, h=hk, gripper=gripper)
         ok, rn = newton_equilibrium(rod, tol=tol, max_iter=25)
         if ok or rn < 10 * tol:
             break

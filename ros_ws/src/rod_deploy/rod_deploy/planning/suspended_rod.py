@@ -22,6 +22,18 @@ Two problem types share one discretisation:
   The vertical and lateral forces at the connective node are what the table (normal reaction, friction) supplies.
   The gripper position q_M = r(ls) is an output.  This is the continuum limit of the released solver's condition
   "clamp reaction at the connective node = (0, kappa EI / dl, 0)".
+* ``shear``: the optimal grasp with a prescribed lateral force n0_y = ``lateral_force`` at the connective node
+  (issue #10's "shear-matched" grasp, ``optimal_grasp.shear_matched_grasp``), r(0) = 0, t(0) = x and
+  m(0) = kappa_bar z kept (m(0) . t(0) = 0: the twist m . t, a first integral, is zero); one of the optimal grasp's
+  conditions is released (``shear_release``, ``SHEAR_RELEASES``): the gripper, a clamp, supplies a bending moment
+  (n0_x = 0 kept) out of the lift-off plane (``'gripper_out_of_plane'``: m_y(ls) = 0 kept) or in it
+  (``'gripper_in_plane'``: m_x(ls) = 0 kept); or the gripper stays moment free (m(ls) = 0) and the force along the
+  tangent n0_x is released (``'tangential'``).  At lateral_force equal to the ``optimal`` solution's n0_y each is
+  that solution.  Why the lateral force is hard to prescribe: the moment of the suspended part about the vertical
+  through q_C balances, kappa_bar - m_z(ls) = x_g n0_y - y_g n0_x ((x_g, y_g) the gripper's horizontal offset), and
+  once the hanging part turns vertical (ls_bar >= 8 measured) a twist-free rod carries no moment about the vertical
+  there, m_z = 0, so no gripper moment changes n0_y: the gripper releases are singular there; the tangential release
+  is singular at kappa_bar = 0 (y_g = 0).  Measured in ``benchmarks/shear_matched_grasp.py``.
 * ``forward``: Eq. 7 for a given gripper position: clamped at q_C (r(0) = 0, t(0) = x), r(ls) = q_M, m(ls) = 0;
   the clamp force F_ext = -n0 and moment m(0) are outputs (used by Alg. 1-3 and the stability check).
 
@@ -36,6 +48,8 @@ from scipy.linalg import solve_banded
 from .scaling import GRAVITY_NUMBER
 
 NSTATE = 12
+#: the optimal-grasp condition a ``shear`` problem releases for its prescribed n0_y (see the module docstring)
+SHEAR_RELEASES = ('gripper_out_of_plane', 'gripper_in_plane', 'tangential')
 R_, T_, M_, N_ = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 
 
@@ -232,8 +246,28 @@ class SuspendedRodSolution:
         return np.einsum('ki,ki->k', n, self.t)
 
 
-def _boundary_rows(kind, kappa_bar, q_target):
+def _boundary_rows(kind, kappa_bar, q_target, lateral_force=None,
+                        shear_release='tangential'):
     """Return (bc0, bc1): functions y -> (residual, jacobian rows) and the row counts."""
+    if kind == 'shear':
+        target = np.zeros(NSTATE)
+        target[3] = 1.0
+        target[8] = kappa_bar
+        target[10] = lateral_force
+        if shear_release in ('gripper_out_of_plane', 'gripper_in_plane'):
+            # r, t, m (twist free), n0_x, n0_y; the kept gripper moment m_y(ls) (out of plane) or m_x(ls) (in plane)
+            sel0, sel1 = np.r_[0:11], np.r_[7 if shear_release == 'gripper_out_of_plane' else 6]
+        elif shear_release == 'tangential':
+            sel0, sel1 = np.r_[0:6, 7, 8, 10], np.r_[6:9]  # r, t, m_y, m_z, n0_y; m(ls)
+        else:
+            raise ValueError(f'unknown shear_release {shear_release!r} (one of {", ".join(SHEAR_RELEASES)})')
+
+        def bc0(y):
+            return (y - target)[sel0], np.eye(NSTATE)[sel0]
+
+        def bc1(y):
+            return y[sel1].copy(), np.eye(NSTATE)[sel1]
+        return bc0, bc1, len(sel0), len(sel1)
     if kind == 'optimal':
         sel0 = np.r_[0:6, 7, 8, 9]       # r, t, m_y, m_z, n0_x
 
@@ -288,20 +322,28 @@ class _BandedLayout:
 
 
 def solve_suspended_rod(kind, ls_bar, ks_bar, kappa_bar=0.0, q_target=None, guess=None, s=None,
-                        tol=1e-10, max_iter=60, gravity=GRAVITY_NUMBER):
+                        tol=1e-10, max_iter=60, gravity=GRAVITY_NUMBER, lateral_force=None,
+                        shear_release='tangential'):
     """Solve the suspended-rod BVP by damped Newton.
+
+    lateral_force: n0_y [k_b / L_gb^2] for kind ``shear`` (required there, refused elsewhere); shear_release: the
+    condition it releases (``SHEAR_RELEASES``).
 
     guess: a :class:`SuspendedRodSolution` (re-meshed by interpolation in s/ls) or an (N+1, 12) array on ``s``.
     Raises :class:`BVPError` when Newton fails.
     """
     if not ls_bar > 0:
         raise ValueError('ls_bar must be positive')
+    if (kind == 'shear') != (lateral_force is not None):
+        raise ValueError('lateral_force is given for (and only for) the kind "shear"')
+    if lateral_force is not None and not np.isfinite(lateral_force):
+        raise ValueError(f'lateral_force must be finite, got {lateral_force}')
     inv_ks = 0.0 if (ks_bar is None or not np.isfinite(ks_bar)) else 1.0 / float(ks_bar)
     if s is None:
         s = default_mesh(ls_bar)
     N = len(s) - 1
     Y = _initial_states(s, ls_bar, guess, kind, q_target)
-    bc0, bc1, na, nb = _boundary_rows(kind, kappa_bar, q_target)
+    bc0, bc1, na, nb = _boundary_rows(kind, kappa_bar, q_target, lateral_force, shear_release)
     n, lo, up, rows, cl, cr, _ = _BandedLayout.get(N, na)
     h = np.diff(s)
 

@@ -44,6 +44,15 @@ curve's curvature gradient, against mu times the point reaction), the laid rod s
 after touch-down. The planner predicts that drag from the planned curvature and plans once more, for the pattern
 moved outwards by it beyond the friction-limited start (``template``); ``pattern_as_given`` stays the drawing.
 
+The horizontal force at q_C (``shear``, issue #10): the laid rod at rest with the planned curvature needs none
+along the tangent and the shear EI kappa' across it; the optimal grasp applies about EI kappa / (2.3 L_gb) across it
+whatever kappa' is, and friction takes the difference. No grasp can match the shear: the hanging part turns
+vertical and, twist free, carries no moment about the vertical whatever the gripper holds, so the moment about the
+vertical through q_C balances as kappa EI = x_g F_y - y_g F_x (F the force on the laid rod in the local frame,
+(x_g, y_g) the gripper's horizontal offset; ``benchmarks/shear_matched_grasp.py``). ``'least_force'`` (numeric
+method) lets the force along the tangent go and takes the grasp of that family with the smallest horizontal force
+(0.567 -> 0.419 EI / L_gb^2 at kappa_bar 1).
+
 Sign of the curvature: kappa(s) > 0 turns left (towards z_hat x T, counter-clockwise seen from above); the grasp
 solvers take the released code's kappa_bar = -kappa L_gb (positive turns right, see ``optimal_grasp``).
 
@@ -73,6 +82,11 @@ from .rod_description import RodDescription
 METHODS = ('nn', 'numeric', 'intuitive')
 STARTS = ('tangent', 'achievable')
 PLANNED_CURVES = ('closest', 'spread')
+#: the horizontal force each node's grasp applies to the laid rod at q_C: 'moment_free' the paper's optimal grasp
+#: (n0_x = 0, n0_y about -kappa_bar / 2.3 an output), 'least_force' the grasp of the moment-free family with n0_x
+#: released whose horizontal force is smallest (numeric method only; issue #10, ``optimal_grasp.closest_shear_grasp``;
+#: matching the laid curve's shear exactly is out of reach, benchmarks/shear_matched_grasp.py)
+SHEARS = ('moment_free', 'least_force')
 #: the table friction the 'achievable' start assumes when neither the settings nor the rod give one (medium)
 DEFAULT_FRICTION = 0.5
 #: the largest ``PlannerSettings.friction_share`` the start may count on (the bound is an estimate: the simulated rod
@@ -128,12 +142,20 @@ class PlannerSettings:
     #: plan for the pattern moved outwards of its bends by the drag that the friction excess at the touch-down point
     #: predicts (``bend_drag.py``); False: plan for the pattern itself
     drag_compensation: bool = True
+    #: the horizontal force the grasps apply at q_C (``SHEARS``): 'moment_free' (the paper's optimal grasp) or
+    #: 'least_force' (the smallest one a moment-free gripper can, a force along the tangent allowed; method 'numeric')
+    shear: str = 'moment_free'
 
     def validate(self):
         if self.method not in METHODS:
             raise PlanningError(f'unknown method {self.method!r} (one of {", ".join(METHODS)})')
         if self.start not in STARTS:
             raise PlanningError(f'unknown start {self.start!r} (one of {", ".join(STARTS)})')
+        if self.shear not in SHEARS:
+            raise PlanningError(f'unknown shear {self.shear!r} (one of {", ".join(SHEARS)})')
+        if self.shear != 'moment_free' and self.method != 'numeric':
+            raise PlanningError(f"shear {self.shear!r} needs method 'numeric' (the network gives moment-free grasps only), "
+                                f"got method {self.method!r}")
         if self.planned_curve not in PLANNED_CURVES:
             raise PlanningError(f'unknown planned_curve {self.planned_curve!r} (one of {", ".join(PLANNED_CURVES)})')
         if self.friction is not None and not (np.isfinite(self.friction) and self.friction > 0):
@@ -364,8 +386,20 @@ def check_friction_holds(pattern: ProcessedPattern, rod: RodDescription, frictio
         f'on a surface with more friction')
 
 
-def grasps(inputs, method, progress=None):
-    """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs."""
+def grasps(inputs, method, progress=None, lateral_forces=None):
+    """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs; ``lateral_forces`` (method 'numeric'): the
+    n0_y each node's grasp comes closest to (``closest_shear_grasp``; 0: the least horizontal force), None: the
+    moment-free optimal grasps."""
+    if lateral_forces is not None:
+        if method != 'numeric':
+            raise PlanningError('grasps for a prescribed shear need the numeric method')
+        from .optimal_grasp import closest_shear_sequence
+        from .suspended_rod import BVPError
+        try:
+            seq = closest_shear_sequence(inputs, lateral_forces, progress=progress)
+        except (BVPError, RuntimeError, ValueError) as e:
+            raise PlanningError(f'the grasp solver failed along the pattern: {e}') from None
+        return np.array([g.position for g in seq]), np.array([g.rotvec for g in seq])
     if method == 'nn':
         from .neural_controller import load_grasp_network
         return load_grasp_network().predict(inputs[:, 0], inputs[:, 1], inputs[:, 2])
@@ -472,7 +506,8 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
                 # where the drawn one passed): the pattern's own plan stands, reported with template None
                 template = None
     t1 = time.perf_counter()
-    qbar, rotvec = grasps(inputs, settings.method, progress)
+    lateral = np.zeros(len(inputs)) if settings.shear == 'least_force' else None
+    qbar, rotvec = grasps(inputs, settings.method, progress, lateral)
     t2 = time.perf_counter()
     Lgb = rod.gravito_bending_length_m
     Rt = local_frames(pattern.tangent)
@@ -522,7 +557,7 @@ def warm_up(rod: RodDescription, settings: PlannerSettings | None = None) -> flo
     th = np.linspace(0.0, length / (4.0 * lgb), 40)                 # radius 4 L_gb: |kappa_bar| 0.25
     stroke = 4.0 * lgb * np.column_stack([np.sin(th), 1.0 - np.cos(th)])
     try:
-        plan_trajectory(stroke, rod, replace(settings, method='nn'))
+        plan_trajectory(stroke, rod, replace(settings, method='nn', shear='moment_free'))
     except PlanningError:        # a stroke this rod cannot lay (a very short rod): the first plan loads them instead
         pass
     return time.perf_counter() - t0
