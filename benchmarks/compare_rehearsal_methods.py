@@ -38,7 +38,7 @@ def main():
                          f'{sorted({r["method"] for r in data["runs"]})})')
     lines = [f'# `{args.before}` vs `{args.after}` on the runs of `{src.name}`', '',
              f'Written by `benchmarks/compare_rehearsal_methods.py` from `{src.name}` (load average at the end of the '
-             f'runs: {data.get("load_end") or "-"}). Eq. 17 e_mean in cm (N = 50); CPU: each `rod-deploy` process\'s '
+             f'runs: {"-" if data.get("load_end") is None else format(data["load_end"], ".1f")}). Eq. 17 e_mean in cm (N = 50); CPU: each `rod-deploy` process\'s '
              'own CPU time (wait4) in s; "-": not simulated (refused, or failed: see the results file).', '',
              f'| shape | rod (form) | e_mean before | e_mean after | change | plan CPU before | plan CPU after | '
              'simulate CPU before | simulate CPU after |', '|---|---|---|---|---|---|---|---|---|']
