@@ -53,11 +53,10 @@ def main():
     for shape in [s for s in before if s in after]:
         b, a = before[shape], after[shape]
         eb, ea = e(b), e(a)
-        if eb is not None and ea is not None:
+        if eb is not None and ea is not None:        # the CPU medians: of the shapes both simulated
             pairs.append((eb, ea))
-        for k, r in (('b', b), ('a', a)):
-            plan_c[k].append(r.get('plan_cpu'))
-            if r.get('sim_cpu') is not None:
+            for k, r in (('b', b), ('a', a)):
+                plan_c[k].append(r['plan_cpu'])
                 sim_c[k].append(r['sim_cpu'])
         lines.append(f'| {shape} | {b["rod"]} ({b["form"]}) | {f(eb)} | {f(ea)} | '
                      f'{"-" if eb is None or ea is None else format(ea - eb, "+.3f")} | {f(b.get("plan_cpu"), ".1f")} '
@@ -69,8 +68,7 @@ def main():
                       f'cm (median {np.median(p[:, 0]):.3f} -> {np.median(p[:, 1]):.3f}); better by more than '
                       f'{args.threshold:g} cm: {int((d < -args.threshold).sum())}, worse: '
                       f'{int((d > args.threshold).sum())}, within: {int((abs(d) <= args.threshold).sum())}. '
-                      f'Median CPU of plan {np.median([c for c in plan_c["b"] if c is not None]):.1f} -> '
-                      f'{np.median([c for c in plan_c["a"] if c is not None]):.1f} s, of simulate '
+                      f'Median CPU of plan {np.median(plan_c["b"]):.1f} -> {np.median(plan_c["a"]):.1f} s, of simulate '
                       f'{np.median(sim_c["b"]):.1f} -> {np.median(sim_c["a"]):.1f} s.']
     out = results_path(args, args.out)
     out.write_text('\n'.join(lines) + '\n')
