@@ -789,7 +789,7 @@ def summary_against_targets(rows, elastica):
         pe = el.get(nn['dir']) if nn else None
         refused = ', '.join(f'{m} ({"refused" if r["plan_rc"] == 2 else "FAILED"})' for m, r in
                             (('nn', nn), ('numeric', num), ('intuitive', it)) if r and r['plan_rc'] != 0)
-        out.append(f'| {shape} | {(nn or it)["rod"]} | {_f(e(nn), ".3f")} | '
+        out.append(f'| {shape} | {(nn or num or it)["rod"]} | {_f(e(nn), ".3f")} | '
                    f'{"-" if e(nn) is None else ("yes" if e(nn) <= 0.1 else "no")} | {_f(pe, ".3f")} | '
                    f'{"-" if pe is None else ("yes" if pe <= 0.2 else "no")} | {_f(e(num), ".3f")} | '
                    f'{_f(e(it), ".3f")} | {_f(ratio, ".1f")} | '

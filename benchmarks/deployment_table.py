@@ -208,7 +208,7 @@ def main():
                     if method == 'published' and (rod_id != 3 or not (REF / 'reference_outputs' /
                                                                       f'{name}_traj_NN.txt').exists()):
                         continue
-                    t0 = time.perf_counter()
+                    t0, c0 = time.perf_counter(), time.process_time()
                     try:
                         refined_note = ''
                         if method == 'published':
@@ -250,7 +250,8 @@ def main():
                         row = (rod_id, fr, name, method, e['e_mean_cm'], e['sigma_cm'], e['coverage'],
                                time.perf_counter() - t0 if refined_note else res.wall_time_s,
                                f'{refined_note}laid strain {100 * laid_strain(res, rod.length_m):.2f} %; Newton '
-                               f'max {res.max_newton_iterations}, halved steps {res.halved_steps}')
+                               f'max {res.max_newton_iterations}, halved steps {res.halved_steps}; CPU (plan and '
+                               f'simulation) {time.process_time() - c0:.1f} s')
                         if args.plots:
                             from rod_deploy.deployment.plots import plot_deployment
                             tag = f'_{start_used}' if method in ('nn', 'numeric') else ''
