@@ -58,11 +58,17 @@ def _get_parameters(ros_context, node_name, names, timeout_s=30.0):
     client_node = ros_context.add(__import__('rclpy').create_node('param_probe', context=ros_context.context))
     client = client_node.create_client(GetParameters, f'/{node_name}/get_parameters')
     assert client.wait_for_service(timeout_sec=timeout_s), f'{node_name} did not come up'
-    future = client.call_async(GetParameters.Request(names=list(names)))
+    # a request sent while the server's reply writer has not yet matched this client's reply reader can be lost
+    # (the service is discovered before its reply path; seen once in a fresh-clone CI run on a loaded machine):
+    # ask again every 5 s until the deadline instead of waiting on one request
     end = time.monotonic() + timeout_s
-    while not future.done() and time.monotonic() < end:
-        time.sleep(0.02)
-    assert future.done()
+    future = None
+    while (future is None or not future.done()) and time.monotonic() < end:
+        future = client.call_async(GetParameters.Request(names=list(names)))
+        resend = min(time.monotonic() + 5.0, end)
+        while not future.done() and time.monotonic() < resend:
+            time.sleep(0.02)
+    assert future.done(), f'{node_name} did not answer get_parameters within {timeout_s} s'
     values = [parameter_value_to_python(v) for v in future.result().values]
     client_node.destroy_client(client)
     return dict(zip(names, values))
