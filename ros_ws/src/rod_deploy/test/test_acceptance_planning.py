@@ -228,3 +228,17 @@ print(json.dumps({'before': before, 'after': [len(k.signatures) for k in kernels
         line = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
         assert line['planning_time_s'] > 0 and (line['startup_s'] > 0) == warmed
 
+
+
+def test_plan_numeric_with_its_progress_bar(tmp_path, capsys):
+    """`rod-deploy plan --method numeric` as the issue calls it (no --quiet): the progress bar's tqdm object has no
+    total, and `if bar` raised TypeError (bool() undefined) before a node was planned - a bare traceback and no
+    trajectory. The acceptance rehearsal always passed --quiet."""
+    rod = tmp_path / 'rod.yaml'
+    rod.write_text('length: 0.5\nradius: 0.002\nL_gb: 0.034\n')
+    np.savetxt(tmp_path / 'line.txt', np.column_stack([np.linspace(0, 0.06, 13), np.zeros(13)]))
+    assert main(['plan', '--pattern', str(tmp_path / 'line.txt'), '--rod', str(rod), '--method', 'numeric',
+                 '--out', str(tmp_path / 'line.csv')]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary['method'] == 'numeric'
+    assert len((tmp_path / 'line.csv').read_text().splitlines()) > 10

@@ -116,7 +116,8 @@ def run(args) -> int:
             from tqdm import tqdm
             bar = tqdm(desc='numeric grasps', unit='node', disable=None)
         try:
-            plan = plan_trajectory(points, rod, settings, progress=(lambda k: bar.update(1)) if bar else None)
+            plan = plan_trajectory(points, rod, settings,
+                                   progress=(lambda k: bar.update(1)) if bar is not None else None)
         finally:
             if bar is not None:
                 bar.close()
