@@ -15,8 +15,9 @@ NaN, repeated points) gives one error line naming the point, exit 2, and no file
 default): the start laid along the curve friction can hold near the free end (``planning/achievable_start.py``; the
 rod file's ``friction``, else 0.5); ``--start tangent``: Alg. 4's start, every node on the pattern itself.
 ``--max-kappa-bar-rate``: how fast the planned curvature may change (``planning/curvature_rate.py``). ``--shear
-least_force`` (numeric method; 30-80 s a pattern): each grasp applies the smallest horizontal force a moment-free
-gripper can at the connective node, a force along the tangent allowed (``optimal_grasp.closest_shear_grasp``).
+least_force`` (numeric method; planning a median 19 s of CPU on the fresh rehearsal set against 3.7 s moment
+free): each grasp applies the smallest horizontal force a moment-free gripper can at the connective node, a force
+along the tangent allowed (``optimal_grasp.closest_shear_grasp``).
 Bends where the table cannot hold the touch-down point are planned moved outwards by the drag predicted there
 (``planning/bend_drag.py``; the JSON line's ``drag_compensation_max_offset_m``). The JSON line's
 ``planning_time_s`` is this plan's; ``startup_s`` the one-off loading before it (the network's weights, the compiled

@@ -330,15 +330,15 @@ def closest_shear_grasp(ls_bar, kappa_bar, ks_bar, lateral_force, *, moment_free
     return grasp, moment_free
 
 
-def closest_shear_sequence(inputs, lateral_forces, progress=None):
-    """:func:`closest_shear_grasp` along a pattern: ``inputs`` rows (ls_bar, ks_bar, kappa_bar) as for
-    :func:`grasp_sequence`, ``lateral_forces`` the n0_y the laid rod needs at each node; the moment-free grasps are
-    continued from node to node and each node's family scanned from its own."""
+def least_force_sequence(inputs, progress=None):
+    """:func:`closest_shear_grasp` with no lateral force asked (the least horizontal force at q_C) along a pattern:
+    ``inputs`` rows (ls_bar, ks_bar, kappa_bar) as for :func:`grasp_sequence`; the moment-free grasps are continued
+    from node to node and each node's family scanned from its own."""
     out, prev_free = [], None
-    for row, f in zip(inputs, lateral_forces):
+    for row in inputs:
         ls, ks, kap = (float(v) for v in row)
         free = optimal_grasp(ls, kap, ks, guess=prev_free, check_stability=False)
-        g, _ = closest_shear_grasp(ls, kap, ks, float(f), moment_free=free)
+        g, _ = closest_shear_grasp(ls, kap, ks, 0.0, moment_free=free)
         out.append(g)
         prev_free = free
         if progress is not None:

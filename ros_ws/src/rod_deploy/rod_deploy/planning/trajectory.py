@@ -386,28 +386,19 @@ def check_friction_holds(pattern: ProcessedPattern, rod: RodDescription, frictio
         f'on a surface with more friction')
 
 
-def grasps(inputs, method, progress=None, lateral_forces=None):
-    """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs; ``lateral_forces`` (method 'numeric'): the
-    n0_y each node's grasp comes closest to (``closest_shear_grasp``; 0: the least horizontal force), None: the
-    moment-free optimal grasps."""
-    if lateral_forces is not None:
-        if method != 'numeric':
-            raise PlanningError('grasps for a prescribed shear need the numeric method')
-        from .optimal_grasp import closest_shear_sequence
-        from .suspended_rod import BVPError
-        try:
-            seq = closest_shear_sequence(inputs, lateral_forces, progress=progress)
-        except (BVPError, RuntimeError, ValueError) as e:
-            raise PlanningError(f'the grasp solver failed along the pattern: {e}') from None
-        return np.array([g.position for g in seq]), np.array([g.rotvec for g in seq])
+def grasps(inputs, method, progress=None, shear='moment_free'):
+    """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs; ``shear`` (``SHEARS``): 'least_force' (method
+    'numeric') the grasps with the least horizontal force at q_C (``optimal_grasp.least_force_sequence``)."""
+    if shear != 'moment_free' and method != 'numeric':
+        raise PlanningError(f'shear {shear!r} needs the numeric method')
     if method == 'nn':
         from .neural_controller import load_grasp_network
         return load_grasp_network().predict(inputs[:, 0], inputs[:, 1], inputs[:, 2])
     if method == 'numeric':
-        from .optimal_grasp import grasp_sequence
+        from .optimal_grasp import grasp_sequence, least_force_sequence
         from .suspended_rod import BVPError
         try:
-            seq = grasp_sequence(inputs, progress=progress)
+            seq = (least_force_sequence if shear == 'least_force' else grasp_sequence)(inputs, progress=progress)
         except (BVPError, RuntimeError, ValueError) as e:
             raise PlanningError(f'the numeric grasp solver failed along the pattern: {e}') from None
         return np.array([g.position for g in seq]), np.array([g.rotvec for g in seq])
@@ -506,8 +497,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
                 # where the drawn one passed): the pattern's own plan stands, reported with template None
                 template = None
     t1 = time.perf_counter()
-    lateral = np.zeros(len(inputs)) if settings.shear == 'least_force' else None
-    qbar, rotvec = grasps(inputs, settings.method, progress, lateral)
+    qbar, rotvec = grasps(inputs, settings.method, progress, settings.shear)
     t2 = time.perf_counter()
     Lgb = rod.gravito_bending_length_m
     Rt = local_frames(pattern.tangent)
