@@ -58,6 +58,12 @@ def mask_edges(mask: np.ndarray, points: np.ndarray, normals: np.ndarray, half_s
     return lo, hi
 
 
+def _normals(a, closed):
+    """Unit normals (n, 2) of path ``a``: its tangents after a 2 px Gaussian smoothing, turned by -90 degrees."""
+    t = cl.tangents(cl.smooth(a, 2.0, closed), closed)
+    return np.stack([t[:, 1], -t[:, 0]], axis=1)
+
+
 def _runs(flags, min_len):
     """(first, last) index ranges of the runs of True at least ``min_len`` long."""
     out, i, n = [], 0, len(flags)
@@ -145,9 +151,7 @@ def separate_side_by_side(paths: list, widths: list, closed: list, mask: np.ndar
                     offsets[lo_i:hi_i + 1] = delta
         if not offsets.any():
             continue
-        t = cl.tangents(cl.smooth(a, 2.0, closed[i]), closed[i])
-        normals = np.stack([t[:, 1], -t[:, 0]], axis=1)
-        out[i] = a + cl.gaussian_filter(offsets, 2.0, wrap=closed[i])[:, None] * normals
+        out[i] = a + cl.gaussian_filter(offsets, 2.0, wrap=closed[i])[:, None] * _normals(a, closed[i])
     return out
 
 
@@ -158,8 +162,7 @@ def _alone_width(a, b, closed, mask, w_max):
     alone = np.arange(0, len(a), 2)[~np.isfinite(far)]
     if len(alone) < 3:
         return None
-    t = cl.tangents(cl.smooth(a, 2.0, closed), closed)[alone]
-    lo, hi = mask_edges(mask, a[alone], np.stack([t[:, 1], -t[:, 0]], axis=1), w_max + 4.0)
+    lo, hi = mask_edges(mask, a[alone], _normals(a, closed)[alone], w_max + 4.0)
     own = hi - lo
     return float(np.nanmedian(own)) if np.count_nonzero(np.isfinite(own)) >= 3 else None
 
@@ -174,8 +177,7 @@ def _stretch_offsets(a, lo_i, hi_i, b, w_min, w_max, closed, mask, colours=None,
     (rods of different colours), else (one colour, no crossing ``between`` the two paths near the stretch)
     from where the paths part at its ends (:func:`_leaving_side`), each narrowing a flip, which must agree
     with the side at the far end."""
-    t_all = cl.tangents(cl.smooth(a, 2.0, closed), closed)
-    n_all = np.stack([t_all[:, 1], -t_all[:, 0]], axis=1)
+    n_all = _normals(a, closed)
     (s0, m0), (s1, m1) = (_leaving_side(a, lo_i, -1, b, n_all[lo_i], w_max),
                           _leaving_side(a, hi_i, +1, b, n_all[hi_i], w_max))
     # both rods' widths measured the same way as the strip, where each lies alone (farther than 1.5 W from

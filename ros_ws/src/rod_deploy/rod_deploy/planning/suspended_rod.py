@@ -246,8 +246,7 @@ class SuspendedRodSolution:
         return np.einsum('ki,ki->k', n, self.t)
 
 
-def _boundary_rows(kind, kappa_bar, q_target, lateral_force=None,
-                        shear_release='tangential'):
+def _boundary_rows(kind, kappa_bar, q_target, lateral_force=None, shear_release='tangential'):
     """Return (bc0, bc1): functions y -> (residual, jacobian rows) and the row counts."""
     if kind == 'shear':
         target = np.zeros(NSTATE)
