@@ -72,19 +72,38 @@ def test_the_intuitive_baseline_lays_it_worse(straight_deployment):
 
 
 def test_the_deployed_shape_reads_the_rod_lying_on_the_table_up_to_where_it_rises():
-    """Nodes within 0.3 mm of lying on the table count (a free end curled up by 0.1 mm, the node micrometres above the
-    table where the rod leaves it); the shape ends at the first node above that."""
-    h = 0.0016
-    x = np.linspace(0.0, 0.1, 21)
-    z = np.full_like(x, h)
-    z[0] += 1e-4                                               # the free end curled up a little
-    z[14] += 2e-5                                              # the rod leaves the table here ...
-    z[15:] += 1e-3 * np.arange(1, 7)                           # ... and rises towards the gripper
+    """Nodes within 0.3 mm of lying on the table count (a free end curled up by 0.1 mm); the shape ends at the
+    touch-down point between two nodes, where the rod starts to rise towards the gripper as the heavy elastica's
+    boundary layer does, h = a (s - s_td)^3 (rod #3: a = F_z / (6 EI) = 0.125 / L_gb^2), not at the last node within
+    the 0.3 mm (14 mm further for rod #3)."""
+    h, s_td = 0.002, 0.0712
+    x = np.linspace(0.0, 0.1, 21)                              # 5 mm edges
+    z = h + 0.125 / 0.034 ** 2 * np.clip(x - s_td, 0.0, None) ** 3
+    z[:15] -= 2e-7 * (x[:15] <= s_td)                          # the laid nodes sink a little into the contact
+    z[0] = h + 1e-4                                            # the free end curled up a little
     nodes = np.column_stack([x, np.zeros_like(x), z])
-    np.testing.assert_array_equal(deployed_shape(nodes, h), nodes[:15, :2])
+    shape = deployed_shape(nodes, h)
+    np.testing.assert_array_equal(shape[:-1], nodes[:15, :2])
+    assert abs(shape[-1, 0] - s_td) < 2e-4 and shape[-1, 1] == 0.0
+    assert np.sum(z <= h + 3e-4) >= 17                         # what the tolerance alone would have read
     assert len(deployed_shape(nodes, h, tolerance_m=0.0)) == 0    # with no tolerance: the curled end stops it
     nodes[:, 2] = h
     assert len(deployed_shape(nodes, h)) == 21
+
+
+def test_the_touchdown_cut_stays_near_the_last_touching_node_when_the_rise_is_not_cubic():
+    """A rise that is not the boundary layer's (a kink) cannot move the end more than one edge before the first
+    lifted node, and a rod that rises without two lifted nodes beyond the last touching one ends at that node."""
+    h = 0.0016
+    x = np.linspace(0.0, 0.1, 21)
+    z = np.full_like(x, h)
+    z[14:] += 1e-3 * np.arange(1, 8)                           # straight up from node 13
+    nodes = np.column_stack([x, np.zeros_like(x), z])
+    shape = deployed_shape(nodes, h, tolerance_m=2e-3)
+    assert x[12] - 1e-12 <= shape[-1, 0] <= x[14]
+    short = nodes[:15].copy()                                  # the rod ends one node after the last touching one
+    short[14, 2] = h + 1e-4
+    np.testing.assert_array_equal(deployed_shape(short, h), short[:, :2])
 
 
 def test_a_soft_rod_is_laid_to_the_end_of_the_pattern():
