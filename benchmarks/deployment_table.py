@@ -105,8 +105,9 @@ def published_trajectory(name):
 
 
 def laid_strain(res, rod_length_m):
-    """The deployed nodes' arc length over their material length (node index x L / N), minus 1."""
-    xy = res.deployed_xy
+    """The deployed nodes' arc length over their material length (node index x L / N), minus 1; without the deployed
+    shape's last point, which may lie between two nodes (the touch-down point)."""
+    xy = res.deployed_xy[:-1]
     if len(xy) < 2:
         return float('nan')
     arc = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
