@@ -60,8 +60,8 @@ def plot_deployment(path, result, pattern_xy=None, title=''):
     if pattern_xy is not None:
         ax.plot(pattern_xy[:, 0], pattern_xy[:, 1], 'k-', lw=3, alpha=0.35, label='prescribed')
     d = result.deployed_xy
-    ax.plot(d[:, 0], d[:, 1], '-', color='tab:blue', lw=1.5, label='deployed (simulated)')
-    ax.plot(d[0, 0], d[0, 1], 'o', color='tab:blue', ms=5)
+    ax.plot(d[:, 0], d[:, 1], '-', color='tab:blue', lw=1.5, label='deployed (simulated)', zorder=3)
+    ax.plot(d[0, 0], d[0, 1], 'o', color='tab:blue', ms=5, zorder=3)
     gp = result.gripper_path
     ax.plot(gp[:, 0], gp[:, 1], '--', color='tab:red', lw=0.8, label='gripper path (top view)')
     n = result.nodes
@@ -72,7 +72,8 @@ def plot_deployment(path, result, pattern_xy=None, title=''):
         ax.set_title(f'{title}\nEq. 17: e_mean {e["e_mean_cm"]:.3f} cm, sigma {e["sigma_cm"]:.3f} cm, '
                      f'coverage {e["coverage"]:.2f}; friction {result.friction:g}', fontsize=9)
     else:
-        ax.set_title(f'{title}\nfriction {result.friction:g}', fontsize=9)
+        ax.set_title(f'{title}\nfriction {result.friction:g} (prescribed pattern not drawn: give it with --pattern)',
+                     fontsize=9)
     _table_axes(ax)
     _save(fig, path)
 
