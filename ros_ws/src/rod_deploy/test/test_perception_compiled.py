@@ -169,6 +169,10 @@ def test_arc_length_and_resample_are_the_numpy_formulas():
             ref = np.stack([np.interp(t, s, q[:, 0]), np.interp(t, s, q[:, 1])], axis=1)
         out = resample(p, step)
         assert out.shape == ref.shape and np.array_equal(out, ref)
+    assert np.array_equal(resample(np.full((5, 2), 3.0), 1.0), [[3.0, 3.0]])        # no length: the first point
+    import pytest
+    with pytest.raises(ValueError, match=r'\(n >= 1, 2\) points'):
+        resample(np.zeros((0, 2)), 1.0)
 
 
 def test_edge_profiles_are_the_remap_of_the_numpy_maps():
@@ -371,6 +375,24 @@ def test_median_blur_is_opencvs():
         median_blur(img, 4)
     with pytest.raises(ValueError, match='uint8'):
         median_blur(img.astype(np.float32), 5)
+
+
+def test_batch_colours_are_the_medians_of_each_set():
+    """colour_sampler(...).batch (all sets' medians in one compiled call) gives, set by set, median0 of the set's
+    a*b* colours (float32, bit for bit), and None for an empty set."""
+    from rod_deploy.perception.crossing_order import _lab_ab, _sample, colour_sampler, median0
+    rng = np.random.default_rng(32)
+    bgr = rng.integers(0, 256, (120, 160, 3)).astype(np.uint8)
+    sampler = colour_sampler(bgr)
+    for trial in range(300):
+        sets = [rng.uniform(-2, 125, (int(rng.integers(0, 40)), 2)) for _ in range(int(rng.integers(1, 12)))]
+        for points, colour in zip(sets, sampler.batch(sets)):
+            if not len(points):
+                assert colour is None
+                continue
+            ref = median0(_lab_ab(_sample(bgr, points)))
+            assert colour.dtype == ref.dtype == np.float32 and np.array_equal(colour, ref), trial
+    assert sampler.batch([np.zeros((0, 2))]) == [None]
 
 
 def test_zones_are_the_numpy_discs():
