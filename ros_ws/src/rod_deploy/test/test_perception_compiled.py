@@ -169,6 +169,10 @@ def test_arc_length_and_resample_are_the_numpy_formulas():
             ref = np.stack([np.interp(t, s, q[:, 0]), np.interp(t, s, q[:, 1])], axis=1)
         out = resample(p, step)
         assert out.shape == ref.shape and np.array_equal(out, ref)
+    assert np.array_equal(resample(np.full((5, 2), 3.0), 1.0), [[3.0, 3.0]])        # no length: the first point
+    import pytest
+    with pytest.raises(ValueError, match=r'\(n >= 1, 2\) points'):
+        resample(np.zeros((0, 2)), 1.0)
 
 
 def test_edge_profiles_are_the_remap_of_the_numpy_maps():
@@ -345,6 +349,50 @@ def test_background_medians_and_otsu_are_the_numpy_formulas():
             between = (mu[-1] * omega - mu) ** 2 / (omega * (1.0 - omega))
         between[~np.isfinite(between)] = -1.0
         assert _otsu(hist) == float(np.argmax(between))
+
+
+def test_median_blur_is_opencvs():
+    """The running-histogram median filter gives cv2.medianBlur's image (border replicated), on random and smooth
+    images of every size the background estimate meets (down to 1 x 1, windows larger than the image), and on
+    the 1/8-scale mBEST-like background with its k = 15; bad input is refused."""
+    import pytest
+
+    from rod_deploy.perception.segmentation import median_blur
+    rng = np.random.default_rng(30)
+    for trial in range(400):
+        h, w = (int(v) for v in rng.integers(1, 140, 2))
+        k = int(rng.choice([3, 5, 7, 9, 11, 13, 15]))
+        img = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)
+        if trial % 2:
+            img = cv2.GaussianBlur(img, (0, 0), 3)          # smooth: long runs of near-equal medians
+        if trial % 5 == 0:
+            img[:] = img[0, 0]                              # uniform: every window the same value
+        assert np.array_equal(median_blur(img, k), cv2.medianBlur(img, k)), (trial, h, w, k)
+    img = rng.integers(0, 256, (84, 112, 3)).astype(np.uint8)
+    img = cv2.resize(cv2.resize(img, (14, 10)), (112, 84), interpolation=cv2.INTER_LINEAR)
+    assert np.array_equal(median_blur(img, 15), cv2.medianBlur(img, 15))
+    with pytest.raises(ValueError, match='odd k'):
+        median_blur(img, 4)
+    with pytest.raises(ValueError, match='uint8'):
+        median_blur(img.astype(np.float32), 5)
+
+
+def test_batch_colours_are_the_medians_of_each_set():
+    """colour_sampler(...).batch (all sets' medians in one compiled call) gives, set by set, median0 of the set's
+    a*b* colours (float32, bit for bit), and None for an empty set."""
+    from rod_deploy.perception.crossing_order import _lab_ab, _sample, colour_sampler, median0
+    rng = np.random.default_rng(32)
+    bgr = rng.integers(0, 256, (120, 160, 3)).astype(np.uint8)
+    sampler = colour_sampler(bgr)
+    for trial in range(300):
+        sets = [rng.uniform(-2, 125, (int(rng.integers(0, 40)), 2)) for _ in range(int(rng.integers(1, 12)))]
+        for points, colour in zip(sets, sampler.batch(sets)):
+            if not len(points):
+                assert colour is None
+                continue
+            ref = median0(_lab_ab(_sample(bgr, points)))
+            assert colour.dtype == ref.dtype == np.float32 and np.array_equal(colour, ref), trial
+    assert sampler.batch([np.zeros((0, 2))]) == [None]
 
 
 def test_zones_are_the_numpy_discs():

@@ -96,15 +96,32 @@ def _lookup_kernel(image, points, out):
 
 
 def resample(points: np.ndarray, step_px: float) -> np.ndarray:
-    """Points at equal arc-length spacing (last spacing at most ``step_px``), both ends kept."""
+    """Points at equal arc-length spacing (last spacing at most ``step_px``), both ends kept (repeated points,
+    less than 1e-9 px on from the one before, dropped first); compiled (:func:`_resample`)."""
     points = np.asarray(points, dtype=np.float64)
-    s = arc_length(points)
-    keep = np.concatenate([[True], np.diff(s) > 1e-9])
-    points, s = points[keep], s[keep]
-    if len(points) < 2 or s[-1] <= 0:
-        return points[:1].copy()
-    n = max(2, int(np.ceil(s[-1] / step_px)) + 1)
-    return _resample_at(np.ascontiguousarray(points), s, n)
+    if points.ndim != 2 or points.shape[1] != 2 or not len(points):
+        raise ValueError(f'expected (n >= 1, 2) points (row, col), got shape {points.shape}')
+    return _resample(np.ascontiguousarray(points), float(step_px))
+
+
+@njit(cache=True, nogil=True)
+def _resample(points, step_px):
+    """:func:`resample` of (n >= 1, 2) float64 points: the numpy formulas' arithmetic (arc length as
+    :func:`_arc_length`; a point kept where np.diff of it exceeds 1e-9; n = max(2, ceil(s[-1] / step) + 1) points
+    by :func:`_resample_at`; a single point, or no length, gives the first point)."""
+    s = _arc_length(points)
+    kept = np.empty(points.shape)
+    s_kept = np.empty(s.size)
+    m = 0
+    for i in range(s.size):
+        if i == 0 or s[i] - s[i - 1] > 1e-9:
+            kept[m, 0], kept[m, 1] = points[i, 0], points[i, 1]
+            s_kept[m] = s[i]
+            m += 1
+    if m < 2 or s_kept[m - 1] <= 0:
+        return kept[:1].copy()
+    n = max(2, int(np.ceil(s_kept[m - 1] / step_px)) + 1)
+    return _resample_at(kept[:m], s_kept[:m], n)
 
 
 @njit(cache=True, nogil=True)

@@ -100,12 +100,74 @@ def estimate_background(bgr: np.ndarray, block_px: int = 8, uniform_tolerance: f
     small = cv2.resize(bgr, (sw, sh), interpolation=cv2.INTER_LINEAR)   # samples; the median smooths
     k = min(15, (min(sh, sw) // 2) * 2 + 1)
     if k >= 3:
-        small = cv2.medianBlur(small, k)
+        small = median_blur(small, k)
     median = np.empty(3)
     spread = _channel_medians(np.ascontiguousarray(small).reshape(-1, 3), median)
     if k < 3 or spread <= uniform_tolerance:
         return tuple(float(v) for v in median)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def median_blur(image: np.ndarray, k: int) -> np.ndarray:
+    """``cv2.medianBlur(image, k)`` of an (h, w, c) uint8 image, k odd and at most 181: per channel the median of the
+    k x k window, the border replicated; the same numbers (a median of integers), computed by
+    :func:`_median_plane`, about twice as fast as OpenCV's on the small background image here."""
+    if image.dtype != np.uint8 or image.ndim != 3 or k % 2 != 1 or not 1 <= k <= 181:
+        raise ValueError(f'median_blur needs an (h, w, c) uint8 image and an odd k <= 181, got {image.dtype} '
+                         f'{image.shape}, k={k}')
+    r = k // 2
+    out = np.empty(image.shape, np.uint8)
+    for ch in range(image.shape[2]):
+        padded = cv2.copyMakeBorder(np.ascontiguousarray(image[:, :, ch]), r, r, r, r, cv2.BORDER_REPLICATE)
+        _median_plane(padded, k, out, ch)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _median_plane(padded, k, out, ch):
+    """out[:, :, ch] = the median of every k x k window of the uint8 plane ``padded`` (the image with k // 2
+    replicated pixels on each side), by running histograms (Perreault and Hebert 2007, "Median filtering in
+    constant time"): one 256-level histogram per column over the window's rows, moved down a row at a time,
+    and the window's histogram moved along a row by adding the entering column's and subtracting the leaving
+    one's (int16 counts: k * k <= 32767); the median tracked from the previous one by the count of values
+    below it. The median of k * k values is the value of rank k * k // 2."""
+    hp, wp = padded.shape
+    h, w = hp - k + 1, wp - k + 1
+    half = (k * k) // 2
+    columns = np.zeros((wp, 256), np.int16)
+    for b in range(wp):
+        for a in range(k):
+            columns[b, padded[a, b]] += 1
+    window = np.empty(256, np.int16)
+    for i in range(h):
+        if i > 0:
+            for b in range(wp):
+                columns[b, padded[i - 1, b]] -= 1
+                columns[b, padded[i + k - 1, b]] += 1
+        window[:] = 0
+        for b in range(k):
+            for v in range(256):
+                window[v] += columns[b, v]
+        m, below = 0, 0                          # the median and the count of values below it
+        while below + window[m] <= half:
+            below += window[m]
+            m += 1
+        out[i, 0, ch] = m
+        for j in range(1, w):
+            leaving, entering = columns[j - 1], columns[j + k - 1]
+            change = 0
+            for v in range(m):
+                change += entering[v] - leaving[v]
+            for v in range(256):
+                window[v] += entering[v] - leaving[v]
+            below += change
+            while below > half:
+                m -= 1
+                below -= window[m]
+            while below + window[m] <= half:
+                below += window[m]
+                m += 1
+            out[i, j, ch] = m
 
 
 @njit(cache=True, nogil=True)

@@ -41,7 +41,10 @@ def hermite_connector(p0, t0, p1, t1, step_px: float = 1.0) -> np.ndarray:
     d = float(np.linalg.norm(p1 - p0))
     n = max(2, int(np.ceil(d / step_px)) + 1)
     t0, t1 = np.asarray(t0, float), np.asarray(t1, float)
-    s = np.linspace(0.0, 1.0, n)[:, None]
+    s = np.arange(n, dtype=np.float64) * (1.0 / (n - 1))      # np.linspace(0, 1, n)'s numbers, without its overhead
+    s += 0.0
+    s[-1] = 1.0
+    s = s[:, None]
     if p0.shape == p1.shape == t0.shape == t1.shape == (2,):
         # numpy's s ** 3 (its vectorised pow is not libm's), the rest compiled
         return _hermite(s[:, 0], (s ** 3)[:, 0], p0, d * t0, p1, d * t1)
