@@ -137,6 +137,8 @@ def run(args) -> int:
                'planning_time_s': round(plan.timings_s['total'], 4), 'startup_s': round(startup_s, 4)}
     if plan.method != 'intuitive':                      # the intuitive baseline follows the pattern as given
         summary['start'] = settings.start
+        # the share of the friction the friction-limited start counted on (PlannerSettings.looser_start)
+        summary['start_friction_share'] = plan.friction_share
         summary['shear'] = settings.shear
         replaced_m, dev_m = plan.start_replacement()
         summary['start_replaced_m'] = round(replaced_m, 4)
