@@ -161,3 +161,17 @@ def test_looser_start_where_the_bound_keeps_the_plan_far_from_the_pattern():
     # no start to loosen: the tangent start and the intuitive baseline report none
     assert plan_trajectory(pts, ROD, PlannerSettings(start='tangent')).friction_share is None
     assert plan_trajectory(pts, ROD, PlannerSettings(method='intuitive')).friction_share is None
+
+
+def test_cli_plan_no_looser_start(tmp_path, capsys):
+    import json
+
+    from rod_deploy.cli.main import main as cli
+    np.savetxt(tmp_path / 'arc.txt', arc(0.1, np.pi))
+    (tmp_path / 'rod.yaml').write_text('length: 0.6\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    shares = []
+    for extra in ([], ['--no-looser-start']):
+        assert cli(['plan', '--pattern', str(tmp_path / 'arc.txt'), '--rod', str(tmp_path / 'rod.yaml'),
+                    '--out', str(tmp_path / 't.csv'), *extra]) == 0
+        shares.append(json.loads(capsys.readouterr().out)['start_friction_share'])
+    assert shares == [1.5, 1.0]
