@@ -158,6 +158,8 @@ def test_looser_start_where_the_bound_keeps_the_plan_far_from_the_pattern():
     assert a.friction_share == 1.0
     np.testing.assert_array_equal(a.position, b.position)
     np.testing.assert_array_equal(a.quaternion, b.quaternion)
+    # below LOOSER_START_MIN_FRICTION the estimate stands (at 0.45 the looser start would be taken here too)
+    assert plan_trajectory(pts, ROD, PlannerSettings(friction=0.45)).friction_share == 1.0
     # no start to loosen: the tangent start and the intuitive baseline report none
     assert plan_trajectory(pts, ROD, PlannerSettings(start='tangent')).friction_share is None
     assert plan_trajectory(pts, ROD, PlannerSettings(method='intuitive')).friction_share is None
