@@ -6,7 +6,7 @@ with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
         [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] \
         [--drag-compensation off,on] [--friction-shares 1,1.5] [--method nn|numeric]
-        [--shears moment_free,least_force] [--plan-only] [--commit-results]
+        [--shears moment_free,least_force] [--looser-start off,on] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
