@@ -357,8 +357,10 @@ def test_the_closest_curves_normal_equations_are_those_of_its_residuals(monkeypa
         return x
 
     monkeypatch.setattr(curvature_rate, 'levenberg_marquardt', spy)
-    plan_trajectory(rounded_zigzag, ROD, PlannerSettings(free_start_point=free_start_point, drag_compensation=False))
-    # the last fit: with free_start_point the plan fits the curve held, then free (no drag compensation: it plans twice)
+    plan_trajectory(rounded_zigzag, ROD, PlannerSettings(free_start_point=free_start_point, drag_compensation=False,
+                                                         looser_start=False))
+    # the last fit: with free_start_point the plan fits the curve held, then free (no drag compensation: it plans
+    # twice; no looser start: it plans once more at 1.5 times the share)
     residuals, normal_equations, x0, x1, kw = seen[-1]
     assert len(seen) == 1 + free_start_point
     # the limits (the cap on each knot, the rate between neighbours) are the solver's: |D x| <= c, both active at
