@@ -6,7 +6,7 @@ with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
         [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] \
         [--drag-compensation off,on] [--friction-shares 1,1.5] [--method nn|numeric]
-        [--shears moment_free,least_force] [--plan-only] [--commit-results]
+        [--shears moment_free,least_force] [--looser-start off,on] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
@@ -136,6 +136,10 @@ def main():
                     help="comma-separated PlannerSettings.friction_share of the friction-limited start (e.g. 1,1.5; "
                          "default: the planner's), each combined with each planned curve; the row's planned curve is "
                          "marked \", c X\" when given")
+    ap.add_argument('--looser-start', default=None,
+                    help="comma-separated 'off', 'on': PlannerSettings.looser_start (off: the friction-limited start "
+                         "at friction_share only, the planner before it; default: the planner's), each combined with "
+                         "each planned curve; the row's planned curve is marked \", looser start X\" when given")
     ap.add_argument('--method', default='nn', choices=('nn', 'numeric'),
                     help='the grasp solver (PlannerSettings.method)')
     ap.add_argument('--shears', default=None,
@@ -158,18 +162,24 @@ def main():
     drags = args.drag_compensation.split(',')
     shares = [float(c) for c in args.friction_shares.split(',')] if args.friction_shares else [None]
     shears = args.shears.split(',') if args.shears else [None]
+    loosers = args.looser_start.split(',') if args.looser_start else [None]
+    if any(v not in (None, 'off', 'on') for v in loosers):
+        raise SystemExit(f'--looser-start: off, on or off,on, got {args.looser_start!r}')
     if any(d not in ('on', 'off') for d in drags):
         raise SystemExit(f'--drag-compensation: on, off or off,on, got {args.drag_compensation!r}')
     simulated = {}
     for name, pts, what in shapes:
-        for pc, sp, drag, c, sh in ((pc, sp, d, c, sh) for pc in args.planned_curves.split(',')
-                                    for sp in start_points for d in drags for c in shares for sh in shears):
+        for pc, sp, drag, c, sh, lo in ((pc, sp, d, c, sh, lo) for pc in args.planned_curves.split(',')
+                                        for sp in start_points for d in drags for c in shares for sh in shears
+                                        for lo in loosers):
             cpu = time.process_time()
             extra = {**({} if sp is None else {'free_start_point': sp == 'free'}),
                      **({} if c is None else {'friction_share': c}),
-                     **({} if sh is None else {'shear': sh})}
+                     **({} if sh is None else {'shear': sh}),
+                     **({} if lo is None else {'looser_start': lo == 'on'})}
             label = ((pc if sp is None else f'{pc}, {sp} start point') + (' +drag' if drag == 'on' else '')
-                     + ('' if c is None else f', c {c:g}') + ('' if sh is None else f', shear {sh}'))
+                     + ('' if c is None else f', c {c:g}') + ('' if sh is None else f', shear {sh}')
+                     + ('' if lo is None else f', looser start {lo}'))
             try:
                 plan = plan_trajectory(pts, rod, PlannerSettings(method=args.method, planned_curve=pc, friction=0.5,
                                                                  drag_compensation=drag == 'on', **extra))
@@ -190,7 +200,7 @@ def main():
                                                            SimulationSettings(friction=0.5))
             e = eq17_error(pts, res.deployed_xy)
             rows.append((name, what, label, e['e_mean_cm'], dev, k_pat,
-                         f'{note}CPU {time.process_time() - cpu:.0f} s'))
+                         f'{note}start share {plan.friction_share}; CPU {time.process_time() - cpu:.0f} s'))
             print(f'{name} {label}: e_mean {e["e_mean_cm"]:.3f} cm (planned curve up to {100 * dev:.1f} cm off)',
                   flush=True)
             write(out, rows, args, t_all)

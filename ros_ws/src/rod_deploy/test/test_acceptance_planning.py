@@ -70,9 +70,10 @@ def test_the_bend_note_tells_the_pattern_from_its_replaced_start(tmp_path, capsy
     e = np.column_stack([0.025 * t - 0.07 * np.sin(t), 0.07 * np.cos(t)])
     np.savetxt(tmp_path / 'e.txt', e - e[0])
     (tmp_path / 'rod.yaml').write_text('length: 0.89\nradius: 0.002\nL_gb: 0.034\n')
-    # (the curvature rate limit spreads the replaced start's peak below the pattern's: planned without it here)
+    # (the curvature rate limit spreads the replaced start's peak below the pattern's: planned without it here; the
+    # looser start bends the start less: planned at share 1)
     assert main(['plan', '--pattern', str(tmp_path / 'e.txt'), '--rod', str(tmp_path / 'rod.yaml'), '--out',
-                 str(tmp_path / 'e.csv'), '--max-kappa-bar-rate', 'inf']) == 0
+                 str(tmp_path / 'e.csv'), '--max-kappa-bar-rate', 'inf', '--no-looser-start']) == 0
     out = capsys.readouterr()
     summary = json.loads(out.out.strip().splitlines()[-1])
     assert summary['pattern_max_abs_kappa_bar'] < 1.45 < summary['max_abs_kappa_bar']
@@ -159,8 +160,9 @@ def test_plan_planned_curve_flag_chooses_the_curve(tmp_path, capsys, rounded_zig
     np.savetxt(tmp_path / 'z.txt', rounded_zigzag)
     deviation = {}
     for curve in ('closest', 'spread'):
+        # (at the start's share 1: the looser start brings the spread curve's start nearer too, 1.4 x the closest)
         assert main(['plan', '--pattern', str(tmp_path / 'z.txt'), '--rod', str(rod), '--out',
-                     str(tmp_path / f'{curve}.csv'), '--planned-curve', curve]) == 0
+                     str(tmp_path / f'{curve}.csv'), '--planned-curve', curve, '--no-looser-start']) == 0
         deviation[curve] = json.loads(capsys.readouterr().out.strip().splitlines()[-1])['planned_curve_max_deviation_m']
     assert deviation['spread'] > 1.5 * deviation['closest']
     with pytest.raises(SystemExit) as e:

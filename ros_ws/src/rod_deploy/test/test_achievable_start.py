@@ -133,3 +133,47 @@ def test_cli_plan_start_option(tmp_path, capsys):
     np.testing.assert_allclose(a[1][0, 2], b[1][0, 2], atol=1e-9)      # both start at the hanging pose, the
     assert np.linalg.norm(a[1][0, :2] - b[1][0, :2]) < 0.01             # achievable one a few mm off P(0)
     assert np.max(np.abs(a[1] - b[1])) > 1e-4                           # a different start
+
+
+def test_looser_start_where_the_bound_keeps_the_plan_far_from_the_pattern():
+    # a half circle of 10 cm radius from its first point: within c = 1 the planned curve stays 2.1 mm from it on
+    # average; counting on 1.5 times the share brings it within 1.2 mm, more than LOOSER_START_GAIN_M nearer
+    from rod_deploy.planning.trajectory import LOOSER_START_FACTOR, LOOSER_START_GAIN_M
+    pts = arc(0.1, np.pi)
+    plan = plan_trajectory(pts, ROD)
+    fixed = plan_trajectory(pts, ROD, PlannerSettings(looser_start=False))
+    assert PlannerSettings().looser_start
+    assert fixed.friction_share == 1.0
+    assert plan.friction_share == LOOSER_START_FACTOR
+
+    def mean_distance(p):
+        return np.mean(np.linalg.norm(p.asked_xy - p.drawn_pattern.xy, axis=1))
+    assert mean_distance(plan) < mean_distance(fixed) - LOOSER_START_GAIN_M
+    # the same plan as asking for that share outright
+    np.testing.assert_array_equal(plan.position, plan_trajectory(pts, ROD, PlannerSettings(
+        friction_share=LOOSER_START_FACTOR, looser_start=False)).position)
+    # a gently bent start (radius 20 cm) gains less: the estimate stands, the plan as before
+    gentle = arc(0.2, 0.5 * np.pi)
+    a, b = plan_trajectory(gentle, ROD), plan_trajectory(gentle, ROD, PlannerSettings(looser_start=False))
+    assert a.friction_share == 1.0
+    np.testing.assert_array_equal(a.position, b.position)
+    np.testing.assert_array_equal(a.quaternion, b.quaternion)
+    # below LOOSER_START_MIN_FRICTION the estimate stands (at 0.45 the looser start would be taken here too)
+    assert plan_trajectory(pts, ROD, PlannerSettings(friction=0.45)).friction_share == 1.0
+    # no start to loosen: the tangent start and the intuitive baseline report none
+    assert plan_trajectory(pts, ROD, PlannerSettings(start='tangent')).friction_share is None
+    assert plan_trajectory(pts, ROD, PlannerSettings(method='intuitive')).friction_share is None
+
+
+def test_cli_plan_no_looser_start(tmp_path, capsys):
+    import json
+
+    from rod_deploy.cli.main import main as cli
+    np.savetxt(tmp_path / 'arc.txt', arc(0.1, np.pi))
+    (tmp_path / 'rod.yaml').write_text('length: 0.6\nradius: 0.002\nL_gb: 0.034\nfriction: 0.5\n')
+    shares = []
+    for extra in ([], ['--no-looser-start']):
+        assert cli(['plan', '--pattern', str(tmp_path / 'arc.txt'), '--rod', str(tmp_path / 'rod.yaml'),
+                    '--out', str(tmp_path / 't.csv'), *extra]) == 0
+        shares.append(json.loads(capsys.readouterr().out)['start_friction_share'])
+    assert shares == [1.5, 1.0]

@@ -63,6 +63,10 @@ def register(subparsers):
     p.add_argument('--start', choices=('tangent', 'achievable'), default=None,
                    help="achievable (default): the start bent only as far as friction can hold it near the free end; "
                         "tangent: Alg. 4 from the pattern's first point")
+    p.add_argument('--no-looser-start', action='store_true',
+                   help='the friction-limited start counts on the friction bound as estimated (share 1) only; by '
+                        'default it counts on 1.5 times it where that brings the planned curve more than 0.5 mm '
+                        'nearer the pattern (the JSON line\'s start_friction_share)')
     p.add_argument('--max-kappa-bar-rate', type=float, default=None,
                    help='largest change of the planned kappa_bar per L_gb of pattern (default '
                         f'{DEFAULT_MAX_RATE:g} at friction {DEFAULT_RATE_FRICTION:g}, scaled by sqrt(friction / '
@@ -107,7 +111,7 @@ def run(args) -> int:
         settings = PlannerSettings(method=args.method, step_m=args.step, smoothing_m=args.smoothing,
                                    speed_m_s=args.speed, **({'start': args.start} if args.start else {}),
                                    **({'planned_curve': args.planned_curve} if args.planned_curve else {}),
-                                   free_start_point=args.free_start_point,
+                                   free_start_point=args.free_start_point, looser_start=not args.no_looser_start,
                                    **({'shear': args.shear} if args.shear else {}),
                                    **({'max_kappa_bar_rate': args.max_kappa_bar_rate}
                                       if args.max_kappa_bar_rate is not None else {}))
@@ -137,6 +141,8 @@ def run(args) -> int:
                'planning_time_s': round(plan.timings_s['total'], 4), 'startup_s': round(startup_s, 4)}
     if plan.method != 'intuitive':                      # the intuitive baseline follows the pattern as given
         summary['start'] = settings.start
+        # the share of the friction the friction-limited start counted on (PlannerSettings.looser_start)
+        summary['start_friction_share'] = plan.friction_share
         summary['shear'] = settings.shear
         replaced_m, dev_m = plan.start_replacement()
         summary['start_replaced_m'] = round(replaced_m, 4)

@@ -20,7 +20,8 @@ c): with EI = 2 w L_gb^3 (the contract's L_gb) the rod can hold at most
 ``PlannerSettings.friction_share``, default 1: the same
 plans as the earlier bound mu s^2 / (4 L_gb^3) with its share 0.5, the version measured best on the full
 deployments; c = 0.5 of the corrected bound made the full letter C worse, 0.34 -> 0.67 cm: its start strays 18 mm
-from the pattern, which costs more than the slip it avoids), and a pattern's curvature kappa_bar needs a straight-ish start of about
+from the pattern, which costs more than the slip it avoids; the planner counts on 1.5 c where that brings the
+planned curve more than 0.5 mm nearer the pattern, ``PlannerSettings.looser_start``), and a pattern's curvature kappa_bar needs a straight-ish start of about
 2 sqrt(2) L_gb sqrt(|kappa_bar| / (c mu)) before the rod can follow it. A tangent start that asks for more is left by
 the rod once the free end is released: the laid start turns about a point of it and the rest of the shape turns
 with it (clamping the first 3 nodes of the rod on the pattern in the simulator removes that turn: letter C, first
