@@ -84,7 +84,8 @@ def main():
              '| rod | pattern | ' + ' | '.join(f'gain {label[g]}' for g in gains) + ' |',
              '|---|---|' + '---|' * len(gains)]
     for k in keys:
-        lines.append(f'| #{k[0]} | {k[1]} | ' + ' | '.join(f'{e[g, k][0]:.3f} ({e[g, k][1]:.1f})' for g in gains) + ' |')
+        lines.append(f'| #{k[0]} | {k[1]} | ' + ' | '.join(f'{e[g, k][0]:.3f} ({e[g, k][1]:.1f})' for g in gains)
+                     + ' |')
     lines.append('| | mean | ' + ' | '.join(f'{np.mean([e[g, k][0] for k in keys]):.3f}' for g in gains) + ' |')
     out.write_text('\n'.join(lines) + '\n')
     print(f'results: {out}')

@@ -62,7 +62,8 @@ def main():
              'excess), shift (the translation by the drag, the excess along the inward normal integrated with a leak '
              'length ell, projected on the normal). RMS of refined - model over the nodes '
              'beyond the start and its taper, mm.', '',
-             f'| ell m | gains ({args.terms.replace(",", ", ")}) | pooled RMS mm | leave-one-out RMS mm |', '|---|---|---|---|']
+             f'| ell m | gains ({args.terms.replace(",", ", ")}) | pooled RMS mm | leave-one-out RMS mm |',
+             '|---|---|---|---|']
     best = None
     for ell in (float(x) for x in args.ells.split(',')):
         XY = [design(c, ell, START_TAPER_M, cols) for c in cases]

@@ -34,8 +34,9 @@ integrated along the inward normal, Lambda(s) = int excess(s') n_in(s') exp(-(s 
 template moved by -Lambda along its normal. ``drag_offsets`` adds them with ``DRAG_GAINS`` (drag 0, shift 0.40: the
 least-squares fit of the shift term to 7 refined templates, rods #2-#3 at friction 0.5, ``drag_model_fit.py``; in
 a sweep at shift gain 0.42, rod #3's letter A laid 0.393 cm with the drag term at 0.30 as well, 0.210 with the shift
-term alone, against 0.242 with the drag term alone: ``drag_terms_sweep_rods23_mu0.5.md``). The planner is given the pattern moved by the offsets (ramped in from
-the free end over ``START_TAPER_M`` after the friction-limited start, like ``refinement.py``) and plans once more.
+term alone, against 0.242 with the drag term alone: ``drag_terms_sweep_rods23_mu0.5.md``). The planner is given
+the pattern moved by the offsets (ramped in from the free end over ``START_TAPER_M`` after the friction-limited
+start, like ``refinement.py``) and plans once more.
 One set of constants for every rod, pattern and friction (fitted at friction 0.5 only).
 """
 from __future__ import annotations
