@@ -98,7 +98,7 @@ def main():
         D, fz = friction_demand(g.s / Lgb, kb)
         excess = np.maximum(np.abs(D) - mu * fz, 0.0)
         left = np.column_stack([-g.tangent[:, 1], g.tangent[:, 0]])
-        pred = np.sum(drag_offsets(g.s, g.tangent, kb, Lgb, mu, gain=1.0) * left, axis=1)   # outward, per gain
+        pred = np.sum(drag_offsets(g.s, g.tangent, kb, Lgb, mu, gains=(1.0, 0.0)) * left, axis=1)   # outward, per gain
         times, nodes, deployed, *_ = run_der((plan.t, plan.position, plan.quaternion, None), rod, mu, {}, 0.2)
         n = min(nodes.shape[1], len(g.s))
         # inward: the side the demand pulls to (sign of D: > 0 to the right, -left); the offsets' outward sign

@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from rod_deploy.planning.bend_drag import (CONTACT_FY, CONTACT_FZ, CONTACT_KAPPA_BAR, DRAG_GAIN, contact_force_table,
-                                           drag_offsets, friction_demand, friction_excess)
+from rod_deploy.planning.bend_drag import (CONTACT_FY, CONTACT_FZ, CONTACT_KAPPA_BAR, DRAG_GAIN, DRAG_GAINS,
+                                           DRAG_SHIFT_M, contact_force_table, drag_offsets, drag_terms,
+                                           friction_demand, friction_excess)
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
 
@@ -53,12 +54,19 @@ def test_offsets_point_out_of_the_bend(turn):
     s = np.linspace(0.0, 0.3, 61)
     kb = turn * np.clip((s - 0.1) / 0.05, 0.0, 1.0)           # straight, then a ramp into kappa_bar +-1
     tangent = np.tile([1.0, 0.0], (len(s), 1))                # the offsets' sign only needs the local frame
-    off = drag_offsets(s, tangent, kb, lgb, 0.5)
-    assert np.all(off[:, 0] == 0.0)
-    assert np.all(np.abs(off[s < 0.03, 1]) < 1e-4)            # tapered in from the free end
-    # right turn (kappa_bar > 0, released sign): the laid rod is dragged right, the template moves left (+y)
-    assert np.sign(off[-1, 1]) == turn
+    for gains in (DRAG_GAINS, (DRAG_GAIN, 0.0)):
+        off = drag_offsets(s, tangent, kb, lgb, 0.5, gains=gains)
+        assert np.all(off[:, 0] == 0.0)
+        assert np.all(np.abs(off[s < 0.03, 1]) < 1e-4)        # tapered in from the free end
+        # right turn (kappa_bar > 0, released sign): the laid rod is dragged right, the template moves left (+y)
+        assert np.sign(off[-1, 1]) == turn
+    # the drag term: DRAG_GAIN L_gb x the excess on the arc
     assert abs(off[-1, 1]) == pytest.approx(DRAG_GAIN * lgb * (0.5665 - 0.5 * 0.6125), rel=0.02)
+    # the shift term (the default): the excess integrated along the straight frame, leaking over DRAG_SHIFT_M
+    excess, _ = friction_excess(s / lgb, kb, 0.5)
+    w = np.exp(-(s[-1] - s) / DRAG_SHIFT_M) * np.diff(s, prepend=0.0)
+    assert drag_offsets(s, tangent, kb, lgb, 0.5)[-1, 1] == pytest.approx(DRAG_GAINS[1] * np.sum(excess * w),
+                                                                          rel=1e-9)
 
 
 def _arc_pattern(radius, lead=0.15, turn=np.pi):
@@ -122,3 +130,63 @@ def test_a_template_the_planner_refuses_leaves_the_patterns_own_plan():
     plan = plan_trajectory(P, rod, PlannerSettings())
     assert plan.template is None and plan.drag_offset_max() == 0.0
     np.testing.assert_array_equal(plan.position, plain.position)
+
+
+def _bend_then_arc(lgb=0.034, kb_bend=1.0):
+    """A straight lead, a bend of kappa_bar ``kb_bend`` turning right by 90 degrees, a straight, then a wide arc
+    (kappa_bar 0.1, which friction 0.5 holds) turning right by about 180 degrees, the steps in kappa_bar smoothed
+    over 5 mm: (s, tangent, kappa_bar)."""
+    from scipy.ndimage import gaussian_filter1d
+    ds = 0.001
+    kb = np.concatenate([np.zeros(100), np.full(int(round(0.5 * np.pi * lgb / kb_bend / ds)), kb_bend),
+                         np.zeros(80), np.full(int(round(np.pi * lgb / 0.1 / ds)), 0.1)])
+    kb = gaussian_filter1d(kb, 5.0, mode='nearest')
+    s = ds * np.arange(len(kb))
+    theta = -np.concatenate([[0.0], np.cumsum(kb[:-1] / lgb * ds)])            # released sign: right turns
+    return s, np.column_stack([np.cos(theta), np.sin(theta)]), kb
+
+
+def test_shift_term_is_the_translation_by_the_drag_at_the_bend():
+    lgb = 0.034
+    s, tangent, kb = _bend_then_arc(lgb)
+    drag, shift = drag_terms(s, tangent, kb, lgb, 0.5, shift_m=np.inf, start_taper_m=0.0)
+    excess, _ = friction_excess(s / lgb, kb, 0.5)
+    on_arc = np.flatnonzero((np.abs(kb - 0.1) < 1e-6) & (s > 0.2))
+    assert np.all(excess[on_arc[0] - 20:] == 0.0)             # friction holds the wide arc: no drag of its own
+    assert np.abs(drag[on_arc[50:]]).max() < 1e-9
+    # the bend drags the laid rod inwards, most where the ramp into it adds to the pull (heading +x, the inside -y):
+    # Lambda = int excess (-left) ds
+    left = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    Lam = np.sum(-excess[:, None] * left * np.diff(s, prepend=0.0)[:, None], axis=0)
+    assert np.linalg.norm(Lam) > 1e-3
+    assert Lam[1] < -abs(Lam[0])
+    # on the arc the template moves against that fixed translation: its normal component, which changes sign
+    # along the arc as a translation's does, as large as the translation where the normal is along it
+    np.testing.assert_allclose(shift[on_arc], -np.sum(Lam * left[on_arc], axis=1)[:, None] * left[on_arc],
+                               atol=1e-9)
+    n_shift = np.sum(shift[on_arc] * left[on_arc], axis=1)
+    assert n_shift[0] < 0 < n_shift[-1]
+    assert n_shift.min() == pytest.approx(-np.linalg.norm(Lam), rel=0.01)
+    # a leak length lets it fade: each inward step weighs exp(-(s - s') / 0.2) at s
+    _, leaky = drag_terms(s, tangent, kb, lgb, 0.5, shift_m=0.2, start_taper_m=0.0)
+    for i in (on_arc[0], on_arc[0] + 200):
+        w = np.exp(-(s[i] - s[:i + 1]) / 0.2) * np.diff(s, prepend=0.0)[:i + 1]
+        lam_i = np.sum(-excess[:i + 1, None] * left[:i + 1] * w[:, None], axis=0)
+        np.testing.assert_allclose(leaky[i], -np.dot(lam_i, left[i]) * left[i], rtol=1e-3, atol=1e-7)
+    assert np.linalg.norm(leaky[on_arc[0] + 200]) < 0.5 * np.linalg.norm(shift[on_arc[0] + 200])
+    with pytest.raises(ValueError, match='leak'):
+        drag_terms(s, tangent, kb, lgb, 0.5, shift_m=0.0)
+
+
+def test_default_offsets_compensate_the_translation_after_a_bend():
+    lgb = 0.034
+    s, tangent, kb = _bend_then_arc(lgb)
+    off = drag_offsets(s, tangent, kb, lgb, 0.5, start_m=0.05)
+    drag_only = drag_offsets(s, tangent, kb, lgb, 0.5, gains=(DRAG_GAIN, 0.0), start_m=0.05)
+    on_arc = np.flatnonzero((np.abs(kb - 0.1) < 1e-6) & (s > 0.2))[50:]
+    assert np.abs(drag_only[on_arc]).max() < 1e-9              # the one-constant model leaves the arc alone
+    terms = drag_terms(s, tangent, kb, lgb, 0.5, DRAG_SHIFT_M, start_m=0.05)
+    np.testing.assert_allclose(off, sum(g * t for g, t in zip(DRAG_GAINS, terms)), atol=1e-12)
+    assert np.abs(off[on_arc]).max() > 1e-3                   # the translation's compensation: a mm or more
+    with pytest.raises(ValueError, match='two finite gains'):
+        drag_offsets(s, tangent, kb, lgb, 0.5, gains=(0.3, 0.1, 0.0))

@@ -46,8 +46,9 @@ is too short to resist its moment - is refused with the node named (``check_fric
 Drag compensation (``drag_compensation``, on by default; ``bend_drag.py``): where the planned curvature asks more
 friction of the touch-down point than the table gives (the suspended part's lateral pull at a bend, plus the laid
 curve's curvature gradient, against mu times the point reaction), the laid rod slides towards the inside of the bend
-after touch-down. The planner predicts that drag from the planned curvature and plans once more, for the pattern
-moved outwards by it beyond the friction-limited start (``template``); ``pattern_as_given`` stays the drawing.
+after touch-down, and what is laid after it is translated by that drag. The planner predicts the drag from the
+planned curvature and plans once more, for the pattern moved against the translation beyond the friction-limited
+start (``template``); ``pattern_as_given`` stays the drawing.
 
 The horizontal force at q_C (``shear``, issue #10): the laid rod at rest with the planned curvature needs none
 along the tangent and the shear EI kappa' across it; the optimal grasp applies about EI kappa / (2.3 L_gb) across it
@@ -532,7 +533,7 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
             given, rod, settings, mu, (pattern, inputs, asked_xy, start_pattern))
     template = None
     if settings.drag_compensation and settings.method != 'intuitive':
-        # bend_drag.py: plan once more for the pattern moved outwards of its bends by the predicted drag, beyond
+        # bend_drag.py: plan once more for the pattern moved against the predicted drag's translation, beyond
         # the friction-limited start (its curve is what friction holds near the free end: left as it is)
         from .bend_drag import drag_offsets
         kb = np.interp(given.s, pattern.s, inputs[:, 2])
