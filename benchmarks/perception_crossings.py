@@ -16,7 +16,7 @@ two different rods whether the perceived over/under (where decided) is right (th
 is decided too, but not scored here). Development seeds (the failures of which were looked at to make the
 rules): ``DEV_SETS`` (the first round's development seeds 1000.., its held-out seeds 900000.., and
 the second to tenth rounds' held-out seeds 4200000.., 5300000.., 6400000.., 7500000.., 9100000..,
-10200000.., 11300000.., 12400000.., 13500000.. and 14600000.., which became development data once looked at; 8 per kind, 16 for 7500000..
+10200000.., 11300000.., 12400000.., 13500000.., 14600000.. and 15700000.., which became development data once looked at; 8 per kind, 16 for 7500000..
 onwards); held-out seeds of the current round, run once, after the rules were fixed: from ``HELDOUT_BASE``
 (never used before that run), ``HELDOUT_PER_KIND`` per kind.
 Scenes are cached in out/crossing_scenes (generation takes ~0.5-20 s each: shapes are drawn until they
@@ -41,8 +41,8 @@ ROOT = Path(__file__).resolve().parent.parent
 # development: every seed looked at so far, (first seed, scenes per kind)
 DEV_SETS = ((1000, 8), (900_000, 8), (4_200_000, 8), (5_300_000, 8), (6_400_000, 8), (7_500_000, 16),
             (9_100_000, 16), (10_200_000, 16), (11_300_000, 16), (12_400_000, 16), (13_500_000, 16),
-            (14_600_000, 16))
-HELDOUT_BASE = 15_700_000        # held out of the twelfth round (issue #12)
+            (14_600_000, 16), (15_700_000, 16))
+HELDOUT_BASE = 16_800_000        # held out of the thirteenth round (issue #12)
 HELDOUT_PER_KIND = 16            # twice the first development sets' 8 per kind
 CACHE = ROOT / 'out' / 'crossing_scenes'
 HISTORY = ['### Before the rules of this round', '',
