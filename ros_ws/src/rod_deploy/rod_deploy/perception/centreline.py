@@ -5,7 +5,7 @@ lengthened at the ends. For each point of a traced path the foreground evidence 
 across the path, the two edges (steepest change of evidence, found to sub-pixel precision) are located,
 and the point moves to their midpoint; the distance between them is the local width. Where the rod's
 colour stands out from the table's, the edges are looked for in the rod's share of the light instead
-(:func:`rod_share_profiles`; on a table at least half as bright as the rod): the evidence |I - B| of a round
+(:func:`rod_share_profiles`; on a table within a factor 2 of the rod's brightness): the evidence |I - B| of a round
 rod's shaded flank can be as low as the table's (the steepest change was then the shading inside the rod,
 and the path sat 1-2.5 px towards the lit flank) and that of its shadow beside it as high as the rod's.
 Points in crossings, where a second strand corrupts the profile, and points whose width is implausible
@@ -492,10 +492,11 @@ def rod_share_profiles(bgr: np.ndarray, background, points: np.ndarray, normals:
     lit flank's, so the steepest change of alpha is the rod's edge even where the evidence |I - B| of the
     dark flank is as low as the table's and the shadow's beside it as high as the rod's. None when fewer
     than 3 points count, the two chromaticities are less than ``min_chroma_distance`` apart (median over
-    the path: the split would be noise), or the table (B + G + R, median along the path) is darker than
-    ``min_brightness_ratio`` times the rod (at the path points, median): on a dark table no flank of the rod
-    fades into the table, the evidence's edges hold, and a dark table's chromaticity is noise (on the
-    published mBEST photos, cables on a black cloth, the split's edges lay 1-2 px inside the cables')."""
+    the path: the split would be noise), or the table's brightness B + G + R (median along the path) and the
+    rod's (at the path points, median) differ by more than a factor 1 / ``min_brightness_ratio``: a rod's
+    flank fades into a table only about as bright as the rod, elsewhere the evidence's edges hold, and the
+    darker one's chromaticity is noise (on the published mBEST photos, cables on a black cloth, the split's
+    edges lay about 1.5 px inside the cables'; dark ink on paper: its ends were placed 2-3 px off)."""
     points = np.ascontiguousarray(points, dtype=np.float64)
     normals = np.ascontiguousarray(normals, dtype=np.float64)
     offsets = np.ascontiguousarray(offsets, dtype=np.float64)
@@ -578,7 +579,9 @@ def _rod_share(bgr, points, normals, offsets, table, table_brightness, excluded,
             _colour_at(bgr, points[i, 0], points[i, 1], colour)
             column[m] = colour[0] + colour[1] + colour[2]
             m += 1
-    if table_brightness < min_brightness_ratio * _sorted_median(column):
+    rod_brightness = _sorted_median(column)
+    if table_brightness < min_brightness_ratio * rod_brightness or \
+            rod_brightness < min_brightness_ratio * table_brightness:
         return False
     for i in range(n):
         # alpha = row 0 of (M^T M)^-1 M^T, M = [c_rod c_table]
@@ -603,7 +606,8 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     """Edge-centred, smoothed path at 1 px spacing (see module docstring); ``exclude(points)`` returns a
     bool mask of points whose profile must not be trusted, e.g. inside crossings; ``colour``: (BGR image,
     background), to find the edges in the rod's share of the light (:func:`rod_share_profiles`) where the
-    rod's colour stands out from a table about as bright as the rod; else, and without it, in ``evidence``.
+    rod's colour stands out from a table about as bright as the rod; elsewhere, and without it, in
+    ``evidence``.
     Profiles span 0.8 ``approx_width_px`` + 3 px either side of the path."""
     pts = resample(points, 1.0)
     if len(pts) < 3:
