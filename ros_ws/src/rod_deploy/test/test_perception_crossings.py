@@ -480,3 +480,23 @@ def test_a_loop_in_the_shadow_of_its_own_crossing_is_not_cut_off():
     assert not any(o.closed for o in res.objects)
     best = min(res.objects, key=lambda o: centreline_rms(o.points, sc.curves[0])['rms_px'])
     assert best.length_px() > 0.85 * arc_length(sc.curves[0])[-1]
+
+
+@pytest.mark.parametrize('light_azimuth_rad', [0.3, 1.9])
+def test_wide_shaded_rod_beside_a_thin_one_is_centred_on_a_grey_table(light_azimuth_rad):
+    """A 13 px pink rod and a 6 px orange one on a grey table: the shaded flank of the pink rod is about as
+    bright as the table, so its mask and its evidence stop short of that flank, and w (the scene's, about 7
+    px) gave profiles too short to reach it. The path was 0.7-2.3 px off along the whole rod and its width
+    8-10 px; with profiles as wide as the rod's own mask and the edges of its share of the light it lies
+    within 0.5 px RMS and its width within 0.6 px."""
+    t = np.linspace(0.0, 1.0, 400)
+    wide = np.stack([150 + 40 * np.sin(2.5 * t), 60 + 480 * t], axis=1)
+    thin = np.stack([330 - 30 * np.sin(2.0 * t), 60 + 480 * t], axis=1)
+    image = render_rod_scene((400, 600), [wide, thin], [13.0, 6.0], [(230, 120, 200), (40, 170, 230)], [],
+                             background=(121, 103, 122), texture=3.0, light_azimuth_rad=light_azimuth_rad,
+                             ambient=0.5, shadow_strength=0.5, seed=3)
+    res = perceive(image)
+    assert len(res.objects) == 2
+    best = min(res.objects, key=lambda o: centreline_rms(o.points, wide)['rms_px'])
+    assert centreline_rms(best.points, wide)['rms_px'] <= 0.5
+    assert abs(best.width_px - 13.0) <= 0.6

@@ -3,7 +3,11 @@
 A skeleton is a chain of pixel centres, up to half a pixel off the true centre line and shortened or
 lengthened at the ends. For each point of a traced path the foreground evidence is sampled (bilinearly)
 across the path, the two edges (steepest change of evidence, found to sub-pixel precision) are located,
-and the point moves to their midpoint; the distance between them is the local width.
+and the point moves to their midpoint; the distance between them is the local width. Where the rod's
+colour stands out from the table's, the edges are looked for in the rod's share of the light instead
+(:func:`rod_share_profiles`; on a table within a factor 2 of the rod's brightness): the evidence |I - B| of a round
+rod's shaded flank can be as low as the table's (the steepest change was then the shading inside the rod,
+and the path sat 1-2.5 px towards the lit flank) and that of its shadow beside it as high as the rod's.
 Points in crossings, where a second strand corrupts the profile, and points whose width is implausible
 keep their skeleton position (their correction is interpolated from the neighbours). The path is then
 smoothed along its arc length by a Gaussian (odd reflection at open ends keeps the ends and their
@@ -491,10 +495,137 @@ def _parabola_vertex(p, j):
     return min(max(d, np.float32(-0.5)), np.float32(0.5))
 
 
+def rod_share_profiles(bgr: np.ndarray, background, points: np.ndarray, normals: np.ndarray,
+                       offsets: np.ndarray, excluded: np.ndarray, min_chroma_distance: float = 0.05,
+                       min_brightness_ratio: float = 0.5):
+    """The rod's share of the light across the path: float32 (n, k) profiles at ``offsets`` along the
+    ``normals`` of ``points``, or None where the rod's colour does not stand out from the table's. Each
+    sample's colour I (BGR, bilinear) is split by least squares into I = alpha c_rod + beta c_table, with
+    c the chromaticities (B, G, R) / (B + G + R) of the rod (the median over the path points not
+    ``excluded``) and of the table (``background``, an image or one BGR colour as
+    :func:`~.segmentation.estimate_background` gives it, at the path point); alpha is the profile. A pixel
+    a fraction a of which the rod covers has alpha = a times the rod's brightness there: a shadow on the
+    table goes into beta, and the dim flank of a round rod keeps alpha at about the ambient share of the
+    lit flank's, so the steepest change of alpha is the rod's edge even where the evidence |I - B| of the
+    dark flank is as low as the table's and the shadow's beside it as high as the rod's. None when fewer
+    than 3 points count, the two chromaticities are less than ``min_chroma_distance`` apart (median over
+    the path: the split would be noise), or the table's brightness B + G + R (median along the path) and the
+    rod's (at the path points, median) differ by more than a factor 1 / ``min_brightness_ratio``: a rod's
+    flank fades into a table only about as bright as the rod, elsewhere the evidence's edges hold, and the
+    darker one's chromaticity is noise (on the published mBEST photos, cables on a black cloth, the split's
+    edges lay about 1.5 px inside the cables'; dark ink on paper: its ends were placed 2-3 px off)."""
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    normals = np.ascontiguousarray(normals, dtype=np.float64)
+    offsets = np.ascontiguousarray(offsets, dtype=np.float64)
+    if isinstance(background, np.ndarray):
+        table = np.empty((len(points), 3))
+        brightness = float(_table_chroma(np.ascontiguousarray(background), points, table))
+    else:
+        if len(background) != 3:
+            raise ValueError(f'background must be a BGR image or one BGR colour, got {background!r}')
+        colour = np.asarray(background, dtype=np.float64)
+        brightness = float(colour.sum())
+        table = np.tile(colour / max(brightness, 1e-9), (len(points), 1))
+    share = np.empty((len(points), len(offsets)), np.float32)
+    found = _rod_share(np.ascontiguousarray(bgr), points, normals, offsets, table, brightness,
+                       np.ascontiguousarray(excluded, dtype=np.bool_), float(min_chroma_distance),
+                       float(min_brightness_ratio), share)
+    return share if found else None
+
+
+@njit(cache=True, nogil=True)
+def _table_chroma(background, points, out):
+    """out[i] = chromaticity of the BGR ``background`` image at the pixel nearest to points[i]; returns the
+    median brightness B + G + R there."""
+    h, w, _ = background.shape
+    totals = np.empty(points.shape[0])
+    for i in range(points.shape[0]):
+        r = min(max(int(np.rint(points[i, 0])), 0), h - 1)
+        c = min(max(int(np.rint(points[i, 1])), 0), w - 1)
+        total = np.float64(background[r, c, 0]) + np.float64(background[r, c, 1]) + np.float64(background[r, c, 2])
+        totals[i] = total
+        for ch in range(3):
+            out[i, ch] = background[r, c, ch] / max(total, 1e-9)
+    return _sorted_median(totals)
+
+
+@njit(cache=True, nogil=True)
+def _colour_at(bgr, r, c, out):
+    """The BGR colour of the image at float (row, col), bilinear per channel (:func:`_bilinear`)."""
+    for ch in range(3):
+        out[ch] = _bilinear(bgr[:, :, ch], np.float32(r), np.float32(c))
+
+
+@njit(cache=True, nogil=True)
+def _rod_share(bgr, points, normals, offsets, table, table_brightness, excluded, min_distance, min_brightness_ratio,
+               share):
+    """:func:`rod_share_profiles`: False where the rod's colour does not stand out, else True, ``share`` set."""
+    n, k = share.shape
+    centre = np.empty((n, 3))
+    colour = np.empty(3)
+    counted = 0
+    for i in range(n):
+        _colour_at(bgr, points[i, 0], points[i, 1], colour)
+        total = max(colour[0] + colour[1] + colour[2], 1e-9)
+        for ch in range(3):
+            centre[i, ch] = colour[ch] / total
+        if not excluded[i]:
+            counted += 1
+    if counted < 3:
+        return False
+    rod = np.empty(3)
+    column = np.empty(counted)
+    for ch in range(3):
+        m = 0
+        for i in range(n):
+            if not excluded[i]:
+                column[m] = centre[i, ch]
+                m += 1
+        rod[ch] = _sorted_median(column)
+    m = 0
+    for i in range(n):
+        if not excluded[i]:
+            column[m] = np.sqrt((rod[0] - table[i, 0]) ** 2 + (rod[1] - table[i, 1]) ** 2
+                                + (rod[2] - table[i, 2]) ** 2)
+            m += 1
+    if _sorted_median(column) < min_distance:
+        return False
+    m = 0
+    for i in range(n):
+        if not excluded[i]:
+            _colour_at(bgr, points[i, 0], points[i, 1], colour)
+            column[m] = colour[0] + colour[1] + colour[2]
+            m += 1
+    rod_brightness = _sorted_median(column)
+    if table_brightness < min_brightness_ratio * rod_brightness or \
+            rod_brightness < min_brightness_ratio * table_brightness:
+        return False
+    for i in range(n):
+        # alpha = row 0 of (M^T M)^-1 M^T, M = [c_rod c_table]
+        rr = rod[0] * rod[0] + rod[1] * rod[1] + rod[2] * rod[2]
+        tt = table[i, 0] ** 2 + table[i, 1] ** 2 + table[i, 2] ** 2
+        rt = rod[0] * table[i, 0] + rod[1] * table[i, 1] + rod[2] * table[i, 2]
+        det = rr * tt - rt * rt
+        for j in range(k):
+            if det < 1e-12:
+                share[i, j] = np.nan
+                continue
+            _colour_at(bgr, points[i, 0] + offsets[j] * normals[i, 0], points[i, 1] + offsets[j] * normals[i, 1],
+                       colour)
+            ir = colour[0] * rod[0] + colour[1] * rod[1] + colour[2] * rod[2]
+            it = colour[0] * table[i, 0] + colour[1] * table[i, 1] + colour[2] * table[i, 2]
+            share[i, j] = (tt * ir - rt * it) / det
+    return True
+
+
 def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_px: float,
-           floor: float, exclude=None, sigma_px: float = 1.5) -> RefinedPath:
+           floor: float, exclude=None, sigma_px: float = 1.5, colour=None) -> RefinedPath:
     """Edge-centred, smoothed path at 1 px spacing (see module docstring); ``exclude(points)`` returns a
-    bool mask of points whose profile must not be trusted, e.g. inside crossings."""
+    bool mask of points whose profile must not be trusted, e.g. inside crossings; ``colour``: (BGR image,
+    background), to find the edges in the rod's share of the light (:func:`rod_share_profiles`) where the
+    rod's colour stands out from a table about as bright as the rod; elsewhere, and without it, in
+    ``evidence``.
+    Profiles span 0.8 ``approx_width_px`` + 3 px either side of the path."""
     pts = resample(points, 1.0)
     if len(pts) < 3:
         return RefinedPath(pts, float('nan'), closed, np.full(len(pts), np.nan))
@@ -507,8 +638,13 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
         idx = np.append(idx, len(pts) - 1)
     half_span = 0.8 * approx_width_px + 3.0
     prof, offsets = edge_profiles(evidence, pts[idx], normals[idx], half_span)
-    o_l, o_r = edge_positions(prof, offsets, floor, core_px=0.5 * approx_width_px + 1.0)
     excluded = exclude(pts[idx]) if exclude is not None else np.zeros(len(idx), np.bool_)
+    share = None if colour is None else rod_share_profiles(colour[0], colour[1], pts[idx], normals[idx], offsets,
+                                                           excluded)
+    if share is None:
+        o_l, o_r = edge_positions(prof, offsets, floor, core_px=0.5 * approx_width_px + 1.0)
+    else:
+        o_l, o_r = edge_positions(share, offsets, 0.0, core_px=0.5 * approx_width_px + 1.0)
     delta, widths = np.empty(len(pts)), np.empty(len(pts))
     w_obj = _edge_correction(idx, o_l, o_r, np.ascontiguousarray(excluded, dtype=np.bool_), delta, widths)
     if np.isfinite(w_obj):

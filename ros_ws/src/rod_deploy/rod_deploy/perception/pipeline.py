@@ -34,7 +34,11 @@ sub-pixel refinement.
     where that is larger;
  5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
- 6. centreline (:mod:`.centreline`): edge-centred refinement, Gaussian smoothing (``smoothing_sigma_px``),
+ 6. centreline (:mod:`.centreline`): edge-centred refinement (profiles across each path as wide as its
+    object's own width, the mask's median along it, where that is larger than w; where the rod's colour
+    stands out from the table's, the edges of the rod's share of the light,
+    :func:`~.centreline.rod_share_profiles`, which neither a rod's dark flank nor its shadow moves),
+    Gaussian smoothing (``smoothing_sigma_px``),
     ends one half-width inside the boundary (ends at a branch left unpaired at a crossing, a rod end against
     or on another rod: placed by colour, :func:`~.traversal.place_abutting_end`), a small self loop whose
     hole the mask closes re-traced round its blob (:func:`~.filled_loops.trace_filled_loop`); where two
@@ -229,9 +233,10 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
     paths, widths = [], []
     for obj in traced:
         if config.refine:
-            refined = cl.refine(obj.points, obj.closed, evidence, w, floor,
+            w_obj = max(w, 2.0 * float(cl._median(half_width_at(obj.points))) - 1.0)   # a rod wider than w
+            refined = cl.refine(obj.points, obj.closed, evidence, w_obj, floor,
                                 exclude=lambda p: _in_zones(p, zone_centres, zone_radii),
-                                sigma_px=config.smoothing_sigma_px)
+                                sigma_px=config.smoothing_sigma_px, colour=(bgr, seg.background))
             width = refined.width_px if np.isfinite(refined.width_px) else w
             refined = cl.place_ends(refined, evidence, floor, 0.5 * width, tangent_px=max(4.0, w))
             refined.points = _place_abutting_ends(obj, refined.points, tees, colour_full.at, half_width_at, w, f,

@@ -65,6 +65,7 @@ class Segmentation:
     stroke_width_px: float               # rough stroke / rod width from area and perimeter
     method: str
     params: dict = field(default_factory=dict)
+    background: np.ndarray | tuple = ()  # the background B: BGR image (H, W, 3) uint8, or one BGR colour
 
     def describe(self) -> str:
         p = ', '.join(f'{k}={v:.3g}' if isinstance(v, float) else f'{k}={v}' for k, v in self.params.items())
@@ -292,7 +293,7 @@ def segment(image: np.ndarray, config: SegmentationConfig = SegmentationConfig()
     params = {'background_block_px': config.background_block_px, 'otsu_threshold': float(t_otsu),
               'edge_fraction': config.edge_fraction, 'stroke_width_px': width, 'min_area_px': min_area,
               'contrast': mean_fg - mean_bg}
-    return Segmentation(mask, s, peak, float(t_otsu), width, config.method, params)
+    return Segmentation(mask, s, peak, float(t_otsu), width, config.method, params, background)
 
 
 def _histogram_split(s: np.ndarray, threshold):
