@@ -93,7 +93,9 @@ def test_the_deployed_shape_reads_the_rod_lying_on_the_table_up_to_where_it_rise
 
 def test_the_touchdown_cut_stays_near_the_last_touching_node_when_the_rise_is_not_cubic():
     """A rise that is not the boundary layer's (a kink) cannot move the end more than one edge before the first
-    lifted node, and a rod that rises without two lifted nodes beyond the last touching one ends at that node."""
+    lifted node, the end never lies before a node still pressed into the table like a laid one (rod #1's loop: the
+    fit 2.6 mm before it, and Eq. 17 spread the shortfall, 0.034 -> 0.108 cm), and a rod that rises without two
+    lifted nodes beyond the last touching one ends at that node."""
     h = 0.0016
     x = np.linspace(0.0, 0.1, 21)
     z = np.full_like(x, h)
@@ -101,6 +103,11 @@ def test_the_touchdown_cut_stays_near_the_last_touching_node_when_the_rise_is_no
     nodes = np.column_stack([x, np.zeros_like(x), z])
     shape = deployed_shape(nodes, h, tolerance_m=2e-3)
     assert x[12] - 1e-12 <= shape[-1, 0] <= x[14]
+    soft = nodes.copy()                                        # rod #1's coarse boundary layer: node 14 still
+    soft[:15, 2] = h - 1.6e-7                                  # pressed in (twice the laid nodes' 0.16 um), the
+    soft[13:15, 2] = h - np.array([4.9e-7, 3.4e-7])            # fit's cube roots pointing 2.6 mm before it
+    soft[15:, 2] = h + np.array([1.12e-4, 5.12e-4, 1.32e-3, 2.5e-3, 4e-3, 6e-3])
+    assert deployed_shape(soft, h, tolerance_m=2e-3)[-1, 0] >= x[14]
     short = nodes[:15].copy()                                  # the rod ends one node after the last touching one
     short[14, 2] = h + 1e-4
     np.testing.assert_array_equal(deployed_shape(short, h), short[:, :2])
