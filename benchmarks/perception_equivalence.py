@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from perception_crossings import CACHE
-from perception_mbest import draw_strokes, drawn_cases, random_rod_curve
+from perception_mbest import draw_strokes, drawn_cases, random_rod_scenes
 from rod_deploy.perception import pipeline
 from rod_deploy.perception.pipeline import PerceptionError, perceive
 
@@ -42,18 +42,8 @@ def cases(data: Path, shared: Path, crossing_scenes: bool):
                 (size, size), [curve], [width], [(40, 30, 30)], background=(235, 235, 228), noise_std=3.0,
                 gradient=0.25, blur_sigma=0.8, seed=int(width))
     for seed, n in ((7, 30), (4242, 60)):            # perception_mbest.bench_random_scenes' draws
-        rng = np.random.default_rng(seed)
-        palette = [(90, 90, 230), (60, 220, 200), (200, 200, 60), (50, 200, 50), (230, 120, 200), (40, 140, 250)]
-        for trial in range(n):
-            k = 1 + trial % 3
-            shape = (500, 700)
-            widths = list(rng.uniform(5, 16, k))
-            curves = [random_rod_curve(rng, shape, rng.uniform(500, 1100), 4 * w) for w in widths]
-            colours = [palette[i] for i in rng.choice(len(palette), k, replace=False)]
-            textured = trial % 2 == 1
-            yield f'rod scene {seed} {trial}', draw_strokes(
-                shape, curves, widths, colours, background=(120, 100, 80) if textured else (15, 15, 15),
-                noise_std=4, blur_sigma=0.8, texture=12.0 if textured else 0.0, seed=trial)
+        for trial, image, *_ in random_rod_scenes(n, seed):
+            yield f'rod scene {seed} {trial}', image
     if crossing_scenes:
         for f in sorted(CACHE.glob('*.npz')):
             yield f'crossing scene {f.stem}', np.load(f, allow_pickle=True)['scene'].item().image

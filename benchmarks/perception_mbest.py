@@ -126,19 +126,27 @@ def bench_drawn(shared: Path):
     return rows
 
 
-def bench_random_scenes(n: int, seed: int = 7):
+def random_rod_scenes(n: int, seed: int):
+    """(trial, image, curves, widths, textured) of ``n`` random scenes of 1-3 rods (500 x 700 px), drawn from
+    ``seed``: the scenes of :func:`bench_random_scenes` (and of ``perception_equivalence.py``)."""
     rng = np.random.default_rng(seed)
     palette = [(90, 90, 230), (60, 220, 200), (200, 200, 60), (50, 200, 50), (230, 120, 200), (40, 140, 250)]
-    rows = []
+    shape = (500, 700)
     for trial in range(n):
         k = 1 + trial % 3
-        shape = (500, 700)
         widths = list(rng.uniform(5, 16, k))
         curves = [random_rod_curve(rng, shape, rng.uniform(500, 1100), 4 * w) for w in widths]
         colours = [palette[i] for i in rng.choice(len(palette), k, replace=False)]
         textured = trial % 2 == 1
         img = draw_strokes(shape, curves, widths, colours, background=(120, 100, 80) if textured else (15, 15, 15),
                            noise_std=4, blur_sigma=0.8, texture=12.0 if textured else 0.0, seed=trial)
+        yield trial, img, curves, widths, textured
+
+
+def bench_random_scenes(n: int, seed: int = 7):
+    rows = []
+    for trial, img, curves, widths, textured in random_rod_scenes(n, seed):
+        k, shape = len(curves), img.shape[:2]
         gt = np.zeros(shape, np.uint8)
         for i, (c, w) in enumerate(zip(curves, widths)):
             gt[stroke_coverage(shape, c, w) >= 0.5] = i + 1
