@@ -269,12 +269,17 @@ def _unit_tangents(points, closed):
     return t
 
 
+def profile_offsets(half_span_px: float, step_px: float = 0.5) -> np.ndarray:
+    """The offsets [px] along the normal at which :func:`edge_profiles` and :func:`rod_share_profiles` sample."""
+    return np.arange(-half_span_px, half_span_px + 1e-9, step_px)
+
+
 def edge_profiles(evidence: np.ndarray, points: np.ndarray, normals: np.ndarray, half_span_px: float,
                   step_px: float = 0.5):
     """Evidence (a one-channel uint8 or float32 image) sampled across the path: float32 (n, k) profiles at
     offsets (k,) [px] along the normals; bilinear, border replicated, the numbers of ``cv2.remap`` of the image
     as float32 (:func:`_bilinear`; compiled, so neither a float32 copy of the image nor sample maps are made)."""
-    offsets = np.arange(-half_span_px, half_span_px + 1e-9, step_px)
+    offsets = profile_offsets(half_span_px, step_px)
     prof = _profiles(evidence, np.ascontiguousarray(points, dtype=np.float64),
                      np.ascontiguousarray(normals, dtype=np.float64), offsets)
     return prof, offsets
@@ -562,11 +567,13 @@ def _rod_share(bgr, points, normals, offsets, table, table_brightness, excluded,
     """:func:`rod_share_profiles`: False where the rod's colour does not stand out, else True, ``share`` set."""
     n, k = share.shape
     centre = np.empty((n, 3))
+    brightness = np.empty(n)                 # B + G + R at each path point
     colour = np.empty(3)
     counted = 0
     for i in range(n):
         _colour_at(bgr, points[i, 0], points[i, 1], colour)
-        total = max(colour[0] + colour[1] + colour[2], 1e-9)
+        brightness[i] = colour[0] + colour[1] + colour[2]
+        total = max(brightness[i], 1e-9)
         for ch in range(3):
             centre[i, ch] = colour[ch] / total
         if not excluded[i]:
@@ -593,8 +600,7 @@ def _rod_share(bgr, points, normals, offsets, table, table_brightness, excluded,
     m = 0
     for i in range(n):
         if not excluded[i]:
-            _colour_at(bgr, points[i, 0], points[i, 1], colour)
-            column[m] = colour[0] + colour[1] + colour[2]
+            column[m] = brightness[i]
             m += 1
     rod_brightness = _sorted_median(column)
     if table_brightness < min_brightness_ratio * rod_brightness or \
@@ -637,11 +643,12 @@ def refine(points: np.ndarray, closed: bool, evidence: np.ndarray, approx_width_
     if idx[-1] != len(pts) - 1:
         idx = np.append(idx, len(pts) - 1)
     half_span = 0.8 * approx_width_px + 3.0
-    prof, offsets = edge_profiles(evidence, pts[idx], normals[idx], half_span)
     excluded = exclude(pts[idx]) if exclude is not None else np.zeros(len(idx), np.bool_)
+    offsets = profile_offsets(half_span)
     share = None if colour is None else rod_share_profiles(colour[0], colour[1], pts[idx], normals[idx], offsets,
                                                            excluded)
-    if share is None:
+    if share is None:               # the evidence's profiles, sampled only where the rod's share is not used
+        prof, _ = edge_profiles(evidence, pts[idx], normals[idx], half_span)
         o_l, o_r = edge_positions(prof, offsets, floor, core_px=0.5 * approx_width_px + 1.0)
     else:
         o_l, o_r = edge_positions(share, offsets, 0.0, core_px=0.5 * approx_width_px + 1.0)

@@ -42,7 +42,6 @@ def hermite_connector(p0, t0, p1, t1, step_px: float = 1.0) -> np.ndarray:
     n = max(2, int(np.ceil(d / step_px)) + 1)
     t0, t1 = np.asarray(t0, float), np.asarray(t1, float)
     s = np.arange(n, dtype=np.float64) * (1.0 / (n - 1))      # np.linspace(0, 1, n)'s numbers, without its overhead
-    s += 0.0
     s[-1] = 1.0
     s = s[:, None]
     if p0.shape == p1.shape == t0.shape == t1.shape == (2,):
