@@ -46,9 +46,12 @@ the touch-down point, between nodes: beyond it the rod rises as z - h = c (s - s
 boundary layer: curvature zero and a shear jump at the touch-down point), so the cube roots of the first two lifted
 nodes' heights (above ``TOUCHING_HEIGHT_M``) extrapolate linearly to s_td, kept between the last node pressed into
 the table as far as a laid one and the first lifted node (``touchdown_cut``): up to one edge past the pattern's end
-where a node beyond the touch-down point still carries its weight, never a cut before a node that does. Eq. 17's numbers do not move where
-the deployed curve stays longer than the pattern (``eq17_error`` compares the deployed curve's first pattern length):
-the paper's 7 on rod #3, nn plans, medium friction, all to the 4th decimal; coverage 1.015-1.031 -> 1.001-1.016.
+where a node beyond the touch-down point still carries its weight, never a cut before a node that does. Eq. 17's
+numbers do not move where the deployed curve stays longer than the pattern (``eq17_error`` compares the deployed
+curve's first pattern length): the paper's 7 on rods #1-#3, nn plans, medium friction, to the 3rd decimal
+(``benchmarks/results/deployment_table_r11_rods123_medium.md``); a rod that touches down short of the pattern's
+end now shows it (rod #3's loop crossing itself at friction 1.0: 0.045 -> 0.269 cm, ``readout_touchdown.md`` and
+the tables of the eleventh round).
 """
 from __future__ import annotations
 
@@ -59,6 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from rod_deploy.deployment.metrics import arc_length
 from rod_deploy.physics.der_simulator import DiscreteElasticRod, NewtonNotConverged, RodParameters
 from rod_deploy.physics.reference_frames import parallel_transport, signed_angle
 from rod_deploy.planning.rod_description import RodDescription
@@ -144,14 +148,15 @@ def touchdown_cut(nodes, radius_m, k_end):
     s_td, the last one interpolated: c the last node before ``k_end`` within ``TOUCHING_HEIGHT_M`` of the contact
     height, j = c + 1, c + 2 the first two beyond it (rising), h_j their heights above the contact height; the rod
     rises as h = a (s - s_td)^3 there, so s_td = s_j1 - cbrt(h_j1) (s_j2 - s_j1) / (cbrt(h_j2) - cbrt(h_j1)), kept in
-    [s_p, s_j1], p the last node pressed into the table at least as far as the laid rod's median node. Without two rising nodes beyond c (the rod ends there) s_td = s_c; with no touching node
-    before ``k_end`` the nodes before it, as the tolerance reads them."""
+    [s_p, s_j1], p the last node pressed into the table at least as far as the laid rod's median node. Without two
+    rising nodes beyond c (the rod ends there) s_td = s_c; with no touching node before ``k_end`` the nodes before
+    it, as the tolerance reads them."""
     h = nodes[:, 2] - radius_m
     touching = np.flatnonzero(h[:k_end] <= TOUCHING_HEIGHT_M)
     if len(touching) == 0:
         return nodes[:k_end, :2].copy()
     c = int(touching[-1])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(nodes, axis=0), axis=1))])
+    s = arc_length(nodes)
     s_td = s[c]
     if c + 2 < len(nodes) and TOUCHING_HEIGHT_M < h[c + 1] < h[c + 2]:
         r1, r2 = np.cbrt(h[c + 1]), np.cbrt(h[c + 2])
@@ -160,9 +165,9 @@ def touchdown_cut(nodes, radius_m, k_end):
         # its weight or more, e.g. a share of the touch-down's point force: on the table whatever the fit says).
         # Edges of 0.15-0.3 L_gb resolve the boundary layer poorly: on rod #1 (L_gb 1.8 cm, 5 mm edges) the fit put
         # the end 2.6 mm before such a node, and Eq. 17 spread that shortfall (a loop 0.034 -> 0.108 cm)
-        laid_h = float(np.median(h[touching]))
-        pressed = np.flatnonzero(h[:c + 1] <= laid_h)
-        s_td = min(max(s_td, s[int(pressed[-1])] if len(pressed) else s[c]), s[c + 1])
+        # (never empty: at least one touching node, all at or before c, lies at or below their median)
+        pressed = np.flatnonzero(h[:c + 1] <= float(np.median(h[touching])))
+        s_td = min(max(s_td, s[int(pressed[-1])]), s[c + 1])
     i = int(np.searchsorted(s, s_td, side='right')) - 1       # s[i] <= s_td < s[i + 1]
     if s_td - s[i] < 1e-9:
         return nodes[:i + 1, :2].copy()
