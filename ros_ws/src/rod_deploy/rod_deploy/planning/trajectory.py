@@ -414,9 +414,8 @@ def check_friction_holds(pattern: ProcessedPattern, rod: RodDescription, frictio
 
 def grasps(inputs, method, progress=None, shear='moment_free'):
     """(position (m, 3) [L_gb], rotvec (m, 3)) for each node's inputs; ``shear`` (``SHEARS``): 'least_force' (method
-    'numeric') the grasps with the least horizontal force at q_C (``optimal_grasp.least_force_sequence``)."""
-    if shear != 'moment_free' and method != 'numeric':
-        raise PlanningError(f'shear {shear!r} needs the numeric method')
+    'numeric', ``PlannerSettings.validate`` checks it) the grasps with the least horizontal force at q_C
+    (``optimal_grasp.least_force_sequence``)."""
     if method == 'nn':
         from .neural_controller import load_grasp_network
         return load_grasp_network().predict(inputs[:, 0], inputs[:, 1], inputs[:, 2])
