@@ -63,6 +63,25 @@ def test_the_replaced_start_is_reported(tmp_path, capsys):
     assert plan_trajectory(figure8(), ROD, PlannerSettings(method='nn', start='tangent')).start_replacement() == (0, 0)
 
 
+def test_the_replaced_starts_distance_is_the_planned_curves():
+    """start_max_deviation_m is how far the curve the grasps ask for lies from the drawing over the replaced stretch,
+    not the start fit's first guess (a tight wave starting mid-bend, rod #2: the closest planned curve refits the
+    start 4 mm nearer than that guess, which the report gave before)."""
+    x = np.linspace(0.0, 0.5, 400)
+    pts = np.column_stack([x, 0.03 * np.sin(2 * np.pi * x / 0.24 + 1.0)])
+    rod = rod_description_from_dict({'length': 0.885, 'radius': 0.0016, 'L_gb': 0.032})
+    plan = plan_trajectory(pts, rod, PlannerSettings(method='nn', friction=0.5))
+    replaced_m, dev_m = plan.start_replacement()
+    assert replaced_m > 0.1
+    asked = plan.asked_xy[plan.pattern.s <= replaced_m + 1e-9]
+    nearest = np.linalg.norm(asked[:, None, :] - plan.drawn_pattern.xy[None, :, :], axis=2).min(axis=1)
+    assert dev_m == pytest.approx(nearest.max(), abs=1e-12)
+    guess = plan.start_pattern.xy[plan.start_pattern.s <= replaced_m + 1e-9]
+    first_guess = np.linalg.norm(guess[:, None, :] - plan.drawn_pattern.xy[None, :, :], axis=2)
+    assert first_guess.min(axis=1).max() > dev_m + 0.002     # the case where the two differ
+    assert dev_m <= plan.asked_deviation()[0] + 1e-9
+
+
 def test_the_bend_note_tells_the_pattern_from_its_replaced_start(tmp_path, capsys):
     """A cursive e bends with |kappa_bar| <= 1.4; its replaced start bends up to 1.8: the note said 'the pattern
     bends with |kappa_bar| up to 1.8'."""

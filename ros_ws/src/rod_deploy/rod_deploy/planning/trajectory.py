@@ -248,8 +248,10 @@ class PlannedTrajectory:
         return self.pattern_as_given if self.pattern_as_given is not None else self.pattern
 
     def start_replacement(self, tol_m=1e-4):
-        """(length [m] of the pattern's start that the planned curve replaces, the largest distance [m] of the
-        planned curve from the pattern there); (0, 0) when the pattern is planned as given."""
+        """(length [m] of the pattern's start that the friction-limited start replaces, the largest distance [m] from
+        the pattern as drawn of the curve the grasps ask the rod to lay there (``asked_xy``, nearest point); (0, 0)
+        when the pattern is planned as given. The distance is that of the planned curve, not of the start's first
+        guess (``start_pattern``), which the closest planned curve and the looser start refit."""
         given = self.template if self.template is not None else self.pattern_as_given
         start = self.start_pattern if self.start_pattern is not None else self.pattern
         if given is None or given is start:
@@ -257,7 +259,8 @@ class PlannedTrajectory:
         k, length_m = _replaced_stretch(given, start, tol_m)
         if k == 0:
             return 0.0, 0.0
-        d = np.linalg.norm(start.xy[:k, None, :] - given.xy[None, :, :], axis=2).min(axis=1)
+        curve = start.xy[:k] if self.asked_xy is None else self.asked_xy[self.pattern.s <= length_m + 1e-9]
+        d = np.linalg.norm(curve[:, None, :] - self.drawn_pattern.xy[None, :, :], axis=2).min(axis=1)
         return length_m, float(d.max())
 
     def drag_offset_max(self):
