@@ -39,7 +39,11 @@ friction is not in the planner's model; with ``simulate`` it is pre-compensated 
 (T_0 = the pattern P, with the best trajectory so far), simulate it with the fitted rod (deployment D),
 T_{k+1} = T_best + gain (P - D_best) (``RefinementSettings``' defaults), at most 4 simulations, the trajectory
 predicted best kept (the original included); the iteration is erratic
-(benchmarks/results/natural_curvature_correction.md). Without ``simulate`` nothing is pre-compensated.
+(benchmarks/results/natural_curvature_correction.md). Without ``simulate`` nothing is pre-compensated. A replan
+chosen this way is then simulated with rods beside the fitted one (:func:`robustness`: each fitted parameter moved
+both ways by :data:`ROBUSTNESS_FRACTION` of its finite-difference step) and kept only if every one of them is predicted
+to lay it better than the fitted model predicts the original: a replan near an instability (a short rod's free end
+dragged off) can be predicted well by the fitted rod alone and laid far off by the real one.
 
 Why not plan with an effective curvature kappa_pattern - kappa0: the laid rod's material frame is not fixed
 (``benchmarks/natural_curvature_frame.py``): a clean rod lies with d1 up (the frame the simulator's
@@ -358,6 +362,40 @@ class Replan:
     planner_L_gb_m: float | None          # the L_gb the planner was given (None: the original trajectory kept)
     #: pre-compensation for fitted effects the planner does not model (None: not run): iterations, kept one
     precompensation: dict | None = None
+    #: the chosen replan's predictions for rods beside the fitted one (:func:`robustness`; None: not checked)
+    robustness: dict | None = None
+
+
+#: the rods beside the fitted one that a replan must also lay better than the original: each fitted parameter moved
+#: both ways by this fraction of its finite-difference step (L_gb +-3 %, natural curvature +-0.04 / L_gb, friction
+#: +-10 %), about what one deployment tells apart (a rod 2 % off the fitted L_gb laid a replan that the fitted rod
+#: predicted at 0.57 cm at 3.8 cm: the replan sat near a free-end instability)
+ROBUSTNESS_FRACTION = 0.2
+
+
+def robustness(pattern_xy, candidate: Candidate, diagnosis: Diagnosis, sim_settings: SimulationSettings,
+               e_original_cm: float, progress=None) -> dict:
+    """The replanned ``candidate`` simulated with rods beside the fitted one (:data:`ROBUSTNESS_FRACTION`); it is
+    robust when every one of them is predicted to lay it better than the fitted model predicts the original
+    (``e_original_cm``). A simulation that fails counts as not robust (its row says why, ``worst_e_mean_cm`` None)."""
+    model = ForwardModel(candidate.deployment, sim_settings, progress)
+    effects = {e.key: e for e in EFFECTS.values()}
+    rows = []
+    for key, value in diagnosis.fitted.items():
+        delta = ROBUSTNESS_FRACTION * abs(effects[key].step(diagnosis.rod))
+        for sign in (-1.0, 1.0):
+            v = value + sign * delta
+            row = {'parameter': key, 'value': v}
+            try:
+                d = model.deployed(rod_with(diagnosis.rod, {key: v}), f'corrected plan, {key} {v:.4g}')
+                row['predicted_e_mean_cm'] = eq17_error(pattern_xy, d, directed=True)['e_mean_cm']
+            except DeploymentError as e:
+                row['failed'] = str(e)[:200]
+            rows.append(row)
+    failed = any('failed' in r for r in rows)
+    worst = None if failed else max([r['predicted_e_mean_cm'] for r in rows], default=candidate.e_mean_cm)
+    return {'fraction_of_step': ROBUSTNESS_FRACTION, 'neighbours': rows, 'worst_e_mean_cm': worst,
+            'robust': bool(worst is not None and worst < e_original_cm), 'simulations': model.count}
 
 
 #: fitted parameters the planner takes directly; the others are pre-compensated with the fitted simulator
@@ -405,9 +443,17 @@ def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_set
         best, n, record = refine(pattern_xy, rod, planner_rod, best, planner_settings, sim_settings,
                                  precompensation, progress, label='pre-compensated plan, fitted rod:')
         count += n
+    check = None
+    if best.replanned and simulate:
+        # a replan predicted better by the fitted rod alone may sit near an instability that a rod a little off the
+        # fitted one falls into: it is kept only if the rods beside the fitted one lay it better too
+        check = robustness(pattern_xy, best, diagnosis, sim_settings, e_old, progress)
+        count += check['simulations']
+        if not check['robust']:
+            best = Candidate(e_old, deployment, diagnosis.fitted_xy)
     dep = best.deployment
     return Replan(dep.t, dep.position, dep.quaternion, best.replanned, best.deployed_xy, best.e_mean_cm, e_old,
-                  count, best.planner_L_gb_m, record)
+                  count, best.planner_L_gb_m, record, check)
 
 
 def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment | None = None,
@@ -452,8 +498,17 @@ def correct(pattern_xy, rod: RodDescription, observed_xy, deployment: Deployment
                             'planner_L_gb_m': rp.planner_L_gb_m,
                             'planner_models': list(PLANNER_MODELS),
                             'not_in_the_planner': unmodelled,
-                            'precompensation': rp.precompensation}
-        if not rp.replanned and simulate:
+                            'precompensation': rp.precompensation,
+                            'robustness': rp.robustness}
+        if rp.robustness is not None and not rp.robustness['robust']:
+            w = rp.robustness['worst_e_mean_cm']
+            worst = ('a simulation failed' if w is None else
+                     f'up to {w:.3f} cm against {rp.original_predicted_e_mean_cm:.3f} cm for the original')
+            report['warnings'].append(
+                'the replanned trajectory, predicted better by the fitted rod, is not by rods beside it '
+                f'({", ".join(sorted(diag.fitted))} moved by {ROBUSTNESS_FRACTION:g} of the diagnosis step: {worst}): '
+                'it sits near an instability, and the original trajectory is kept')
+        elif not rp.replanned and simulate:
             report['warnings'].append('no replanned or pre-compensated trajectory is predicted by the fitted model to '
                                       'deploy better than the original one, which is kept')
         if unmodelled and not simulate:
