@@ -53,7 +53,8 @@ def case(name, k0):
     pc = rp.precompensation if rp else None
     return dict(pattern=name, k0_true=k0, fitted=diag.fitted, e_before_cm=e_before, e_after_true_cm=e_after,
                 e_after_predicted_cm=report['error_after']['e_mean_cm'], replanned=bool(rp and rp.replanned),
-                simulations=report['simulations'], wall_s=wall, precompensation=pc, warnings=report['warnings'])
+                simulations=report['simulations'], wall_s=wall, precompensation=pc,
+                robustness=rp.robustness if rp else None, warnings=report['warnings'])
 
 
 if __name__ == '__main__':
