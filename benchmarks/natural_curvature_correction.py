@@ -6,6 +6,7 @@ mu 0.5; simulator 1 cm edges, dt 0.1 s, 0.03 m/s), 'U' (the paper's letter U) wi
 dt 0.05 s, 0.01 m/s); nn plans with the declared (straight) rod, the planner's default start.
 
     .venv/bin/python benchmarks/natural_curvature_correction.py line:3 line:-3 hook:3 U:3 ...   # JSON lines
+    .venv/bin/python benchmarks/natural_curvature_correction.py U:mu=0.3 U:L_gb=0.038          # the other effects
 """
 import dataclasses
 import json
@@ -31,14 +32,16 @@ FAST = SimulationSettings(edge_length_m=0.01, dt_s=0.1, max_gripper_speed_m_s=0.
 SLOW = SimulationSettings(edge_length_m=0.01, dt_s=0.05, max_gripper_speed_m_s=0.01, contact_tolerance_m=5e-4)
 
 
-def case(name, k0):
+def case(name, k0, effect='natural_curvature_per_m'):
+    """``effect``: the undeclared effect the TRUE rod has, of value ``k0`` (a natural curvature [1/m], a table
+    friction, or an L_gb [m])."""
     if name == 'U':
         from pathlib import Path
         P = load_pattern(Path(__file__).resolve().parents[2] / 'shared/reference/rod_deployment/patterns/letterU.txt')
         P, rod, sim = P[:, :2], ROD3, SLOW
     else:
         P, rod, sim = {'line': LINE, 'hook': HOOK}[name], SHORT, FAST
-    true = dataclasses.replace(rod, natural_curvature_per_m=k0)
+    true = dataclasses.replace(rod, **{EFFECT_FIELDS[effect]: k0})
     plan = plan_trajectory(P, rod)
     observed = simulate_deployment(plan.t, plan.position, plan.quaternion, true, sim).deployed_xy
     e_before = eq17_error(P, observed, directed=True)['e_mean_cm']
@@ -51,13 +54,22 @@ def case(name, k0):
         e_after = eq17_error(P, simulate_deployment(rp.t, rp.position, rp.quaternion, true, sim).deployed_xy,
                              directed=True)['e_mean_cm']
     pc = rp.precompensation if rp else None
-    return dict(pattern=name, k0_true=k0, fitted=diag.fitted, e_before_cm=e_before, e_after_true_cm=e_after,
+    return dict(pattern=name, effect=effect, true_value=k0, fitted=diag.fitted, e_before_cm=e_before, e_after_true_cm=e_after,
                 e_after_predicted_cm=report['error_after']['e_mean_cm'], replanned=bool(rp and rp.replanned),
                 simulations=report['simulations'], wall_s=wall, precompensation=pc,
                 robustness=rp.robustness if rp else None, warnings=report['warnings'])
 
 
+#: the undeclared effect of a case: PATTERN:K0 (natural curvature), PATTERN:mu=VALUE, PATTERN:L_gb=VALUE
+EFFECT_FIELDS = {'natural_curvature_per_m': 'natural_curvature_per_m', 'friction': 'friction',
+                 'L_gb_m': 'gravito_bending_length_m'}
+CASE_KEYS = {'mu': 'friction', 'L_gb': 'L_gb_m'}
+
+
 if __name__ == '__main__':
     for arg in sys.argv[1:]:
-        name, k0 = arg.split(':')
-        print(json.dumps(case(name, float(k0))), flush=True)
+        name, value = arg.split(':')
+        key, _, value = value.rpartition('=')
+        if key and key not in CASE_KEYS:
+            sys.exit(f'unknown effect {key!r} in {arg!r} (PATTERN:K0, PATTERN:mu=VALUE or PATTERN:L_gb=VALUE)')
+        print(json.dumps(case(name, float(value), CASE_KEYS.get(key, 'natural_curvature_per_m'))), flush=True)
