@@ -174,7 +174,11 @@ def in_start_weight(friction):
     by up to 13 mm (letter A, ``drag_residual_low.md``) where the planner left it alone, while their offsets
     beyond the start follow the shift term at the gain fitted at 0.5 (0.36 against 0.40: the excess,
     |D| - mu F_z, already carries the friction). Compensating the start at 0.5 laid 6 rows better and 2 worse
-    (``drag_in_start.md``, eighth round): no change there."""
+    (``drag_in_start.md``, eighth round): no change there. The linear gate between the two frictions measured is
+    an interpolation, not a derived law (at 0.35, rod #3's letter C: 0.658 -> 0.555 cm). Measured in our DER at
+    0.2 (``deployment_low12_comparison*.md``): rod #3's paper 7 0.509 -> 0.418 cm, rod #2's 0.407 -> 0.372, rod #1's
+    0.054 -> 0.062 (its C 0.055 -> 0.110, a start excess of only 0.10); held out (seed 20261137, rod #3)
+    1.616 -> 1.433, 6 of 10 better, none worse."""
     if not (np.isfinite(friction) and friction > 0):
         raise ValueError(f'friction must be positive, got {friction}')
     lo, hi = IN_START_FRICTION
