@@ -1,12 +1,12 @@
 """Held-out check of the planned curve (issue #10, tight bends): randomly drawn sharply bent shapes, planned with
 ``PlannerSettings.planned_curve`` 'spread' (the pattern's points with its curvature spread by the rate limit) and
 'closest' (the curve closest to the pattern within the rate limit and the friction-limited start), each simulated
-with our DER at medium friction (0.5) on rod #3, Eq. 17 e_mean.
+with our DER at medium friction (0.5; ``--friction``) on rod #3, Eq. 17 e_mean.
 
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/tight_shapes_heldout.py --seed S [--shapes 6] \
         [--planned-curves spread,closest] [--families tight,curved] [--start-points fixed,free] \
         [--drag-compensation off,on] [--friction-shares 1,1.5] [--method nn|numeric]
-        [--shears moment_free,least_force] [--looser-start off,on] [--plan-only] [--commit-results]
+        [--shears moment_free,least_force] [--looser-start off,on] [--friction 0.5] [--plan-only] [--commit-results]
 
 The shapes come from a generator written for this check (``tight_shapes``): rounded polylines (a 12-15 cm first
 leg, then 3-5 corners turning 60-110 degrees either way on radii of 2-4 cm, legs 6-10 cm) and smooth curves whose
@@ -146,11 +146,15 @@ def main():
                     help="comma-separated PlannerSettings.shear (e.g. moment_free,least_force; not moment_free needs "
                          "--method numeric; default: the planner's), each combined with each planned curve; the row's "
                          "planned curve is marked \", shear X\" when given")
+    ap.add_argument('--friction', type=float, default=0.5,
+                    help='table friction of the rod, the planner and the simulation (default 0.5)')
     ap.add_argument('--plan-only', action='store_true', help='plan only (no simulation): a smoke test')
     ap.add_argument('--out-name', default=None)
     add_results_argument(ap)
     args = ap.parse_args()
-    rod = rod_description_from_dict({**ROD3, 'friction': 0.5})
+    if not (np.isfinite(args.friction) and args.friction > 0):
+        raise SystemExit(f'--friction must be positive, got {args.friction}')
+    rod = rod_description_from_dict({**ROD3, 'friction': args.friction})
     out = results_path(args, args.out_name or f'tight_shapes_heldout_seed{args.seed}.md')
     rows, t_all = [], time.perf_counter()
     shapes = []
@@ -181,7 +185,8 @@ def main():
                      + ('' if c is None else f', c {c:g}') + ('' if sh is None else f', shear {sh}')
                      + ('' if lo is None else f', looser start {lo}'))
             try:
-                plan = plan_trajectory(pts, rod, PlannerSettings(method=args.method, planned_curve=pc, friction=0.5,
+                plan = plan_trajectory(pts, rod, PlannerSettings(method=args.method, planned_curve=pc,
+                                                                 friction=args.friction,
                                                                  drag_compensation=drag == 'on', **extra))
             except ValueError as e:
                 rows.append((name, what, label, None, None, None, f'refused: {str(e)[:100]}'))
@@ -197,7 +202,7 @@ def main():
                 res, note = simulated[key], 'the same trajectory as the row above, simulated once; '
             else:
                 res = simulated[key] = simulate_deployment(plan.t, plan.position, plan.quaternion, rod,
-                                                           SimulationSettings(friction=0.5))
+                                                           SimulationSettings(friction=args.friction))
             e = eq17_error(pts, res.deployed_xy)
             rows.append((name, what, label, e['e_mean_cm'], dev, k_pat,
                          f'{note}start share {plan.friction_share}; CPU {time.process_time() - cpu:.0f} s'))
@@ -212,7 +217,7 @@ def write(out, rows, args, t_all):
     lines = [f'# Held-out tight shapes, `python benchmarks/tight_shapes_heldout.py --seed {args.seed}`', '',
              f'Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs (load average '
              f'{os.getloadavg()[0]:.1f} at writing); {time.perf_counter() - t_all:.0f} s in all. Rod #3 (L_gb 3.4 cm, '
-             '0.89 m), friction 0.5, our DER with the defaults of `rod-deploy simulate`, planner '
+             f'0.89 m), friction {args.friction:g}, our DER with the defaults of `rod-deploy simulate`, planner '
              f'{args.method} with the '
              'friction-limited start; Eq. 17 e_mean in cm (N = 50). "planned off": the planned curve\'s largest '
              'distance from the pattern (plan\'s `planned_curve_max_deviation_m`). The shapes are drawn by '
