@@ -202,6 +202,20 @@ def test_edge_profiles_are_the_remap_of_the_numpy_maps():
                 assert _bilinear(img, rows[i, j], cols[i, j]) == ref[i, j]
 
 
+def test_profile_search_is_searchsorted():
+    """The edge search's bisection (_search) is np.searchsorted on the profile offsets, values on them included."""
+    from rod_deploy.perception.centreline import _search, profile_offsets
+    rng = np.random.default_rng(12)
+    for trial in range(300):
+        offsets = profile_offsets(float(rng.uniform(0.5, 25)))
+        values = np.concatenate([rng.uniform(offsets[0] - 2, offsets[-1] + 2, 20), rng.choice(offsets, 5),
+                                 [offsets[0], offsets[-1], -np.inf, np.inf]])
+        for v in values:
+            for right in (False, True):
+                assert _search(offsets, float(v), right) == np.searchsorted(offsets, v, 'right' if right else 'left')
+    assert _search(profile_offsets(3.0), float('nan'), False) == len(profile_offsets(3.0))
+
+
 def _place_end_reference(pts, evidence, floor, half_width_px, tangent_px):
     """The numpy / cv2.remap end placement that the compiled ray search (_end_target) replaces."""
     from rod_deploy.perception.centreline import arc_length

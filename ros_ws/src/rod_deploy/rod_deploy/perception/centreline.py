@@ -309,10 +309,14 @@ def _bilinear(image, r, c):
     rf, cf = np.floor(r), np.floor(c)
     ar, ac = r - rf, c - cf
     r0, c0 = int(rf), int(cf)
-    ra, rb = min(max(r0, 0), h - 1), min(max(r0 + 1, 0), h - 1)
-    ca, cb = min(max(c0, 0), w - 1), min(max(c0 + 1, 0), w - 1)
-    p00, p01 = np.float32(image[ra, ca]), np.float32(image[ra, cb])
-    p10, p11 = np.float32(image[rb, ca]), np.float32(image[rb, cb])
+    if r0 >= 0 and c0 >= 0 and r0 < h - 1 and c0 < w - 1:      # inside: no clamping needed (most samples)
+        p00, p01 = np.float32(image[r0, c0]), np.float32(image[r0, c0 + 1])
+        p10, p11 = np.float32(image[r0 + 1, c0]), np.float32(image[r0 + 1, c0 + 1])
+    else:
+        ra, rb = min(max(r0, 0), h - 1), min(max(r0 + 1, 0), h - 1)
+        ca, cb = min(max(c0, 0), w - 1), min(max(c0 + 1, 0), w - 1)
+        p00, p01 = np.float32(image[ra, ca]), np.float32(image[ra, cb])
+        p10, p11 = np.float32(image[rb, ca]), np.float32(image[rb, cb])
     v0 = fma32(ac, p01 - p00, p00)
     v1 = fma32(ac, p11 - p10, p10)
     return fma32(ar, v1 - v0, v0)
@@ -464,13 +468,18 @@ def _level_crossings(p, offsets, level, c, step):
 
 @njit(cache=True, nogil=True)
 def _search(offsets, value, right):
-    """``np.searchsorted(offsets, value, 'right' if right else 'left')`` (nan: past the end)."""
+    """``np.searchsorted(offsets, value, 'right' if right else 'left')`` of the ascending ``offsets`` (nan: past
+    the end): the first index whose offset is above ``value`` (at or above it: 'left'), by bisection."""
     if np.isnan(value):
         return offsets.size
-    for j in range(offsets.size):
-        if offsets[j] > value if right else offsets[j] >= value:
-            return j
-    return offsets.size
+    lo, hi = 0, offsets.size
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if offsets[mid] > value if right else offsets[mid] >= value:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
 
 
 @njit(cache=True, nogil=True)
@@ -580,8 +589,17 @@ def _rod_share(bgr, points, normals, offsets, table, table_brightness, excluded,
             counted += 1
     if counted < 3:
         return False
-    rod = np.empty(3)
     column = np.empty(counted)
+    m = 0
+    for i in range(n):
+        if not excluded[i]:
+            column[m] = brightness[i]
+            m += 1
+    rod_brightness = _sorted_median(column)     # the cheaper test first (either failing gives False)
+    if table_brightness < min_brightness_ratio * rod_brightness or \
+            rod_brightness < min_brightness_ratio * table_brightness:
+        return False
+    rod = np.empty(3)
     for ch in range(3):
         m = 0
         for i in range(n):
@@ -596,15 +614,6 @@ def _rod_share(bgr, points, normals, offsets, table, table_brightness, excluded,
                                 + (rod[2] - table[i, 2]) ** 2)
             m += 1
     if _sorted_median(column) < min_distance:
-        return False
-    m = 0
-    for i in range(n):
-        if not excluded[i]:
-            column[m] = brightness[i]
-            m += 1
-    rod_brightness = _sorted_median(column)
-    if table_brightness < min_brightness_ratio * rod_brightness or \
-            rod_brightness < min_brightness_ratio * table_brightness:
         return False
     for i in range(n):
         # alpha = row 0 of (M^T M)^-1 M^T, M = [c_rod c_table]
