@@ -532,12 +532,12 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
             given, rod, settings, mu, (pattern, inputs, asked_xy, start_pattern))
     template = None
     if settings.drag_compensation and settings.method != 'intuitive':
-        # bend_drag.py: plan once more for the pattern moved against the predicted drag's translation, beyond
-        # the friction-limited start (its curve is what friction holds near the free end: left as it is)
+        # bend_drag.py: plan once more for the pattern moved against the predicted drag's translation, from the
+        # free end on (ramped in over START_TAPER_M): the drag within the friction-limited start translates the rest
+        # too, and the start is fitted again to the moved template within the same friction bound
         from .bend_drag import drag_offsets
         kb = np.interp(given.s, pattern.s, inputs[:, 2])
-        drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu,
-                                   start_m=_replaced_stretch(given, start_pattern)[1])
+        drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu)
         if np.max(np.abs(drag_offset)) > 0:
             try:
                 template = process_pattern(given.xy + drag_offset, settings.step_m, 0.0, settings.end_weight)
