@@ -31,12 +31,20 @@ The compensation. ``drag_terms`` has two terms per unit gain: ``drag``, L_gb tim
 (smoothed over ``DRAG_SMOOTHING_M``; the one-constant model of the seventh round, DRAG_GAIN the least-squares slope
 of the measured drag on the excess, ``bend_drag_mechanism.py``), and ``shift``, against the translation: the excess
 integrated along the inward normal, Lambda(s) = int excess(s') n_in(s') exp(-(s - s') / DRAG_SHIFT_M) ds', the
-template moved by -Lambda along its normal. ``drag_offsets`` adds them with ``DRAG_GAINS`` (drag 0, shift 0.40: the
-least-squares fit of the shift term to 7 refined templates, rods #2-#3 at friction 0.5, ``drag_model_fit.py``; in
-a sweep at shift gain 0.42, rod #3's letter A laid 0.393 cm with the drag term at 0.30 as well, 0.210 with the shift
-term alone, against 0.242 with the drag term alone: ``drag_terms_sweep_rods23_mu0.5.md``). The planner is given
-the pattern moved by the offsets (ramped in from the free end over ``START_TAPER_M`` after the friction-limited
-start, like ``refinement.py``) and plans once more.
+template moved by -Lambda along its normal. ``drag_offsets`` adds them with ``DRAG_GAINS`` (drag 0, shift 0.43: the
+least-squares fit of the shift term to 6 refined templates of the eleventh round's planner, rods #2-#3 at friction
+0.5, offsets from the free end on, ``drag_model_fit.py``, ``drag_model_fit_r12.md``; the eleventh round's 0.40 at a
+leak of 0.2 m was fitted beyond the friction-limited start only; in a sweep at shift gain 0.42, rod #3's letter A
+laid 0.393 cm with the drag term at 0.30 as well, 0.210 with the shift term alone, against 0.242 with the drag term
+alone: ``drag_terms_sweep_rods23_mu0.5.md``). The translation hardly fades (``DRAG_SHIFT_M`` 1 m; the fit is flat
+from 0.6 m on): once friction holds the laid rod where it was dragged, nothing pulls it back.
+
+Within the friction-limited start too (the twelfth round, ``drag_residual_r12_*.md``): the refined templates of the
+letters C and G move 3-5 mm outwards within the start's first 12 cm, where the default deployments lie 4-6 mm
+inwards, and the other way after it; the start's curvature ramp asks more of the touch-down point than friction
+holds there as well. The planner is given the pattern moved by the offsets from the free end on (ramped in over
+``START_TAPER_M``, like ``refinement.py``; the free end stays at the pattern's first point) and plans once more,
+the friction-limited start fitted again to the moved template within the same bound.
 One set of constants for every rod, pattern and friction (fitted at friction 0.5 only).
 """
 from __future__ import annotations
@@ -145,8 +153,9 @@ def drag_offsets(s, tangent, kappa_bar, lgb_m, friction, gains=None, shift_m=Non
                  smoothing_m=DRAG_SMOOTHING_M, start_taper_m=START_TAPER_M, start_m=0.0):
     """(m, 2) [m] template offsets per node (arc length ``s`` [m], unit ``tangent``, the planned ``kappa_bar``,
     released sign): the sum of :func:`drag_terms` times ``gains`` (drag, shift; default ``DRAG_GAINS``);
-    zero where friction holds the touch-down point and up to ``start_m`` (the planner: the length its
-    friction-limited start replaced), ramped in over ``start_taper_m`` after it."""
+    zero where friction holds the touch-down point and up to ``start_m`` (the planner: 0, from the free end on;
+    ``benchmarks/drag_model_fit.py --beyond-start``: the length the friction-limited start replaced), ramped in over
+    ``start_taper_m`` after it."""
     gains = DRAG_GAINS if gains is None else gains
     if len(gains) != 2 or not all(np.isfinite(g) for g in gains):
         raise ValueError(f'two finite gains (drag, shift) expected, got {gains!r}')

@@ -47,8 +47,9 @@ Drag compensation (``drag_compensation``, on by default; ``bend_drag.py``): wher
 friction of the touch-down point than the table gives (the suspended part's lateral pull at a bend, plus the laid
 curve's curvature gradient, against mu times the point reaction), the laid rod slides towards the inside of the bend
 after touch-down, and what is laid after it is translated by that drag. The planner predicts the drag from the
-planned curvature and plans once more, for the pattern moved against the translation beyond the friction-limited
-start (``template``); ``pattern_as_given`` stays the drawing.
+planned curvature and plans once more, for the pattern moved against the translation from the free end on, the
+friction-limited start included (``template``; the start is fitted again to it); ``pattern_as_given`` stays the
+drawing.
 
 The horizontal force at q_C (``shear``, issue #10): the laid rod at rest with the planned curvature needs none
 along the tangent and the shear EI kappa' across it; the optimal grasp applies about EI kappa / (2.3 L_gb) across it
