@@ -2,12 +2,11 @@
 converged to (``benchmarks/drag_residual.py --save-dir DIR``), node by node.
 
     PYTHONPATH=ros_ws/src/rod_deploy .venv/bin/python benchmarks/drag_model_fit.py [--dir out/drag_residual] \
-        [--from start|free_end] [--commit-results]
+        [--commit-results]
 
-Target: the offset (left normal of the drawn pattern, m) of what the refined plan was planned for, beyond the
-friction-limited start and its taper (the compensation is off there at friction 0.5 and above by design;
-``--from free_end``: the terms and the target from the free end's taper on, as ``bend_drag.in_start_weight``
-applies them at low friction). Terms (``bend_drag.drag_terms``,
+Target: the offset (left normal of the drawn pattern, m) of what the refined plan was planned for, from the free
+end's taper on (the planner compensates from the free end on since the twelfth round; ``--beyond-start``: only
+beyond the friction-limited start and its taper, the eleventh round's rule). Terms (``bend_drag.drag_terms``,
 each per unit gain, m): the drag at the touch-down point (L_gb x the smoothed excess) and the translation of the rest
 of the curve by the drag (the excess integrated along the inward normal, leaking over a length ell; the template
 moved against it). Least squares of the gains per ell, and per case the RMS of target - model for the one-constant
@@ -35,10 +34,10 @@ def load(directory):
     return cases
 
 
-def design(o, ell_m, taper_m, cols=(0, 1), from_free_end=False):
+def design(o, ell_m, taper_m, cols=(0, 1), beyond_start=False):
     from rod_deploy.planning.bend_drag import drag_terms
     tangent = np.column_stack([o['normal'][:, 1], -o['normal'][:, 0]])
-    start_m = 0.0 if from_free_end else float(o['start_m'])
+    start_m = float(o['start_m']) if beyond_start else 0.0
     terms = drag_terms(o['s'], tangent, o['kappa_bar'], float(o['Lgb']), float(o['mu']), shift_m=ell_m,
                        start_m=start_m)
     X = np.column_stack([np.sum(terms[k] * o['normal'], axis=1) for k in cols])
@@ -52,8 +51,8 @@ def main():
     ap.add_argument('--dir', default='out/drag_residual')
     ap.add_argument('--ells', default='0.1,0.2,0.4,inf', help='leak lengths of the shift term [m]')
     ap.add_argument('--terms', default='drag,shift', help='the terms fitted (drag, shift or both)')
-    ap.add_argument('--from', dest='origin', default='start', choices=('start', 'free_end'),
-                    help='terms and target from the end of the friction-limited start (default) or the free end')
+    ap.add_argument('--beyond-start', action='store_true',
+                    help='offsets and target only beyond the friction-limited start (the eleventh round\'s rule)')
     ap.add_argument('--cases', default=None, help='comma-separated case names (files without .npz); default all')
     ap.add_argument('--out-name', default='drag_model_fit.md')
     add_results_argument(ap)
@@ -65,14 +64,13 @@ def main():
     lines = ['# Fit of the drag compensation\'s terms to the refined templates, `python benchmarks/drag_model_fit.py`',
              '', f'{len(cases)} cases: ' + ', '.join(c['file'] for c in cases) + '. Terms: drag (L_gb x smoothed '
              'excess), shift (the translation by the drag, the excess along the inward normal integrated with a leak '
-             'length ell, projected on the normal). RMS of refined - model over the nodes '
-             + ('beyond the start and its taper' if args.origin == 'start' else 'from the free end\'s taper on (the '
-                'friction-limited start included)') + ', mm.', '',
+             'length ell, projected on the normal). RMS of refined - model over the nodes ' +
+             ('beyond the start and its taper' if args.beyond_start else 'from the free end\'s taper on') + ', mm.', '',
              f'| ell m | gains ({args.terms.replace(",", ", ")}) | pooled RMS mm | leave-one-out RMS mm |',
              '|---|---|---|---|']
     best = None
     for ell in (float(x) for x in args.ells.split(',')):
-        XY = [design(c, ell, START_TAPER_M, cols, args.origin == 'free_end') for c in cases]
+        XY = [design(c, ell, START_TAPER_M, cols, args.beyond_start) for c in cases]
         X = np.vstack([a for a, _ in XY])
         y = np.concatenate([b for _, b in XY])
         g = np.linalg.lstsq(X, y, rcond=None)[0]
@@ -95,7 +93,8 @@ def main():
     for c, (X, y) in zip(cases, XY):
         r = lambda v: 1e3 * float(np.sqrt(np.mean(v ** 2)))
         lines.append(f'| {c["file"]} | {float(c["e0"]):.3f} -> {float(c["e1"]):.3f} | {r(y):.2f} | '
-                     f'{r(y - DRAG_GAIN * design(c, ell, START_TAPER_M, (0,), args.origin == "free_end")[0][:, 0]):.2f} | {r(y - X @ g):.2f} |')
+                     f'{r(y - DRAG_GAIN * design(c, ell, START_TAPER_M, (0,), args.beyond_start)[0][:, 0]):.2f} | '
+                     f'{r(y - X @ g):.2f} |')
     out = results_path(args, args.out_name)
     out.write_text('\n'.join(lines) + '\n')
     print('\n'.join(lines[-len(cases) - 2:]))

@@ -65,12 +65,13 @@ def test_the_replaced_start_is_reported(tmp_path, capsys):
 
 def test_the_replaced_starts_distance_is_the_planned_curves():
     """start_max_deviation_m is how far the curve the grasps ask for lies from the drawing over the replaced stretch,
-    not the start fit's first guess (a tight wave starting mid-bend, rod #2: the closest planned curve refits the
-    start 4 mm nearer than that guess, which the report gave before)."""
+    not the start fit's first guess (a tight wave starting mid-bend, rod #2, planned without the drag compensation so
+    that the guess is the pattern's own: the closest planned curve refits the start 3 mm nearer than that guess,
+    which the report gave before)."""
     x = np.linspace(0.0, 0.5, 400)
     pts = np.column_stack([x, 0.03 * np.sin(2 * np.pi * x / 0.24 + 1.0)])
     rod = rod_description_from_dict({'length': 0.885, 'radius': 0.0016, 'L_gb': 0.032})
-    plan = plan_trajectory(pts, rod, PlannerSettings(method='nn', friction=0.5))
+    plan = plan_trajectory(pts, rod, PlannerSettings(method='nn', friction=0.5, drag_compensation=False))
     replaced_m, dev_m = plan.start_replacement()
     assert replaced_m > 0.1
     asked = plan.asked_xy[plan.pattern.s <= replaced_m + 1e-9]

@@ -1,6 +1,8 @@
 """The friction-limited ('achievable') start of a pattern: the closed-form curvature bound, a pattern within it left
 alone, a circle from its first point (curvature at the free end) replaced by the closest curve within the bound that
 rejoins the circle exactly, and the planner option."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -83,8 +85,9 @@ def test_planner_option_is_the_default_and_leaves_a_straight_start_alone():
     np.testing.assert_array_equal(a.position, b.position)
     np.testing.assert_array_equal(a.quaternion, b.quaternion)
     pts = arc(0.1, np.pi)
-    plain = plan_trajectory(pts, ROD, PlannerSettings(start='tangent'))
-    plan = plan_trajectory(pts, ROD)
+    # without the drag compensation, whose template (moved within the start too) may be a node longer
+    plain = plan_trajectory(pts, ROD, PlannerSettings(start='tangent', drag_compensation=False))
+    plan = plan_trajectory(pts, ROD, PlannerSettings(drag_compensation=False))
     assert plain.pattern.xy.shape == plan.pattern.xy.shape
     np.testing.assert_allclose(plan.position[0, :2], plan.pattern.xy[0], atol=1e-12)   # hanging above its start
     held = plan_trajectory(pts, ROD, PlannerSettings(free_start_point=False))
@@ -129,10 +132,11 @@ def test_cli_plan_start_option(tmp_path, capsys):
         outs[start] = read_trajectory_csv(out)
     np.testing.assert_array_equal(outs[None][1], outs['achievable'][1])      # the default start
     a, b = outs['tangent'], outs['achievable']
-    assert len(a[0]) == len(b[0])
+    assert abs(len(a[0]) - len(b[0])) <= 1              # the drag compensation's templates: a node longer or not
     np.testing.assert_allclose(a[1][0, 2], b[1][0, 2], atol=1e-9)      # both start at the hanging pose, the
     assert np.linalg.norm(a[1][0, :2] - b[1][0, :2]) < 0.01             # achievable one a few mm off P(0)
-    assert np.max(np.abs(a[1] - b[1])) > 1e-4                           # a different start
+    n = min(len(a[1]), len(b[1]))
+    assert np.max(np.abs(a[1][:n] - b[1][:n])) > 1e-4                   # a different start
 
 
 def test_looser_start_where_the_bound_keeps_the_plan_far_from_the_pattern():
@@ -146,9 +150,10 @@ def test_looser_start_where_the_bound_keeps_the_plan_far_from_the_pattern():
     assert fixed.friction_share == 1.0
     assert plan.friction_share == LOOSER_START_FACTOR
 
-    def mean_distance(p):
+    def mean_distance(settings):           # the planned curve's, before the drag compensation moves the template
+        p = plan_trajectory(pts, ROD, replace(settings, drag_compensation=False))
         return np.mean(np.linalg.norm(p.asked_xy - p.drawn_pattern.xy, axis=1))
-    assert mean_distance(plan) < mean_distance(fixed) - LOOSER_START_GAIN_M
+    assert mean_distance(PlannerSettings()) < mean_distance(PlannerSettings(looser_start=False)) - LOOSER_START_GAIN_M
     # the same plan as asking for that share outright
     np.testing.assert_array_equal(plan.position, plan_trajectory(pts, ROD, PlannerSettings(
         friction_share=LOOSER_START_FACTOR, looser_start=False)).position)

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from rod_deploy.planning.bend_drag import (CONTACT_FY, CONTACT_FZ, CONTACT_KAPPA_BAR, DRAG_GAIN, DRAG_GAINS,
-                                           DRAG_SHIFT_M, IN_START_FRICTION, contact_force_table, drag_offsets,
-                                           drag_terms, friction_demand, friction_excess, in_start_weight)
+                                           DRAG_SHIFT_M, contact_force_table, drag_offsets, drag_terms,
+                                           friction_demand, friction_excess)
 from rod_deploy.planning.rod_description import rod_description_from_dict
 from rod_deploy.planning.trajectory import PlannerSettings, plan_trajectory
 
@@ -85,7 +85,7 @@ def test_planner_moves_a_tight_bend_outwards_and_leaves_a_held_one_alone():
     g = comp.drawn_pattern
     d = np.array([np.min(np.linalg.norm(comp.template.xy - p, axis=1)) for p in g.xy])
     assert d[g.s < 0.02].max() < 2e-4                         # the start stays on the pattern
-    assert 0.002 < d.max() < 0.008                            # the bend moved by about the predicted drag
+    assert 0.002 < d.max() < 0.010                            # the bend moved by about the predicted translation
     assert comp.drag_offset_max() == pytest.approx(d.max()) and plain.drag_offset_max() == 0.0
     centre = np.array([0.15, -0.034])                          # outwards: further from the arc's centre
     k = int(np.argmax(d))
@@ -192,41 +192,24 @@ def test_default_offsets_compensate_the_translation_after_a_bend():
         drag_offsets(s, tangent, kb, lgb, 0.5, gains=(0.3, 0.1, 0.0))
 
 
-def test_offsets_reach_into_the_friction_limited_start_only_below_medium_friction():
-    lgb = 0.034
-    s, tangent, kb = _bend_then_arc(lgb)
-    start_m = 0.25                                            # the bend (s 0.1-0.15 m) lies in the replaced stretch
-    bend = (s > 0.08) & (s < start_m)
-    lo, hi = IN_START_FRICTION
-    assert in_start_weight(hi) == 0.0 and in_start_weight(2.0) == 0.0
-    assert in_start_weight(lo) == 1.0 and in_start_weight(0.1) == 1.0
-    assert in_start_weight(0.5 * (lo + hi)) == pytest.approx(0.5)
-    with pytest.raises(ValueError, match='positive'):
-        in_start_weight(0.0)
-    for mu in (hi, 1.0):                                      # as fitted: nothing over the replaced stretch
-        off = drag_offsets(s, tangent, kb, lgb, mu, start_m=start_m)
-        assert np.abs(off[s < start_m]).max() == 0.0
-        np.testing.assert_array_equal(off, sum(g * t for g, t in zip(
-            DRAG_GAINS, drag_terms(s, tangent, kb, lgb, mu, DRAG_SHIFT_M, start_m=start_m))))
-    full = drag_offsets(s, tangent, kb, lgb, lo, start_m=start_m)
-    np.testing.assert_allclose(full, drag_offsets(s, tangent, kb, lgb, lo, start_m=0.0), atol=1e-15)
-    assert np.abs(full[bend]).max() > 2e-3                    # the bend in the start moved by millimetres
-    assert np.abs(full[s < 0.01]).max() < 1e-12               # the free end stays where it is
-    mid = 0.5 * (lo + hi)                                     # in between: the share in_start_weight gives
-    part = drag_offsets(s, tangent, kb, lgb, mid, start_m=start_m)
-    none = sum(g * t for g, t in zip(DRAG_GAINS, drag_terms(s, tangent, kb, lgb, mid, DRAG_SHIFT_M, start_m=start_m)))
-    every = drag_offsets(s, tangent, kb, lgb, mid, start_m=0.0)
-    np.testing.assert_allclose(part, 0.5 * none + 0.5 * every, atol=1e-15)
-
-
-def test_planner_at_low_friction_moves_a_bend_inside_the_friction_limited_start():
+def test_the_drag_within_the_friction_limited_start_moves_the_template_outwards_there():
+    # a half circle of radius 8 cm bent from its first point: the friction-limited start replaces 13 cm of it, and
+    # the ramp of its curvature asks more of the touch-down point than friction holds; the rod dragged inwards
+    # there is laid on from where it was dragged to, so the template moves outwards within the start too (the
+    # eleventh round's planner left the start's template on the pattern: at most 0.11 mm off there)
     rod = rod_description_from_dict(ROD3)
-    P = _arc_pattern(0.1, lead=0.06)                          # |kappa_bar| 0.34 after a 6 cm lead
-    plain = plan_trajectory(P, rod, PlannerSettings(friction=0.2, drag_compensation=False))
-    replaced = plain.start_replacement()[0]
-    assert replaced > 0.15                                    # the friction-limited start holds the bend's start
-    plan = plan_trajectory(P, rod, PlannerSettings(friction=0.2))
-    g = plan.drawn_pattern
-    d = np.array([np.min(np.linalg.norm(plan.template.xy - p, axis=1)) for p in g.xy])
-    assert d[(g.s > 0.06) & (g.s < replaced)].max() > 2e-3   # moved there by millimetres
-    assert d[g.s < 0.01].max() < 2e-4                         # the free end stays on the pattern
+    R = 0.08
+    a = np.linspace(0.0, np.pi, 300)
+    P = np.column_stack([R * np.sin(a), R * (np.cos(a) - 1.0)])            # turning right, centre (0, -R)
+    plain = plan_trajectory(P, rod, PlannerSettings(friction=0.5, drag_compensation=False))
+    start_m = plain.start_replacement()[0]
+    assert start_m > 0.1
+    comp = plan_trajectory(P, rod, PlannerSettings(friction=0.5))
+    g = comp.drawn_pattern
+    k = np.flatnonzero((g.s > 0.03) & (g.s < start_m))
+    j = np.array([np.argmin(np.linalg.norm(comp.template.xy - p, axis=1)) for p in g.xy[k]])
+    r_template = np.linalg.norm(comp.template.xy[j] - [0.0, -R], axis=1)
+    assert (r_template - R).max() > 5e-4                     # outwards: further from the centre, by 0.5 mm or more
+    assert (r_template - R).min() > -1e-4
+    assert np.linalg.norm(comp.template.xy[0] - P[0]) < 1e-4  # the free end stays at the pattern's first point
+

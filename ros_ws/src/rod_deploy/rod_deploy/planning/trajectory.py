@@ -47,8 +47,9 @@ Drag compensation (``drag_compensation``, on by default; ``bend_drag.py``): wher
 friction of the touch-down point than the table gives (the suspended part's lateral pull at a bend, plus the laid
 curve's curvature gradient, against mu times the point reaction), the laid rod slides towards the inside of the bend
 after touch-down, and what is laid after it is translated by that drag. The planner predicts the drag from the
-planned curvature and plans once more, for the pattern moved against the translation beyond the friction-limited
-start (``template``); ``pattern_as_given`` stays the drawing.
+planned curvature and plans once more, for the pattern moved against the translation from the free end on, the
+friction-limited start included (``template``; the start is fitted again to it); ``pattern_as_given`` stays the
+drawing.
 
 The horizontal force at q_C (``shear``, issue #10): the laid rod at rest with the planned curvature needs none
 along the tangent and the shear EI kappa' across it; the optimal grasp applies about EI kappa / (2.3 L_gb) across it
@@ -535,12 +536,12 @@ def plan_trajectory(points_xy, rod: RodDescription, settings: PlannerSettings | 
             given, rod, settings, mu, (pattern, inputs, asked_xy, start_pattern))
     template = None
     if settings.drag_compensation and settings.method != 'intuitive':
-        # bend_drag.py: plan once more for the pattern moved against the predicted drag's translation, beyond
-        # the friction-limited start (its curve is what friction holds near the free end: left as it is)
+        # bend_drag.py: plan once more for the pattern moved against the predicted drag's translation, from the
+        # free end on (ramped in over START_TAPER_M): the drag within the friction-limited start translates the rest
+        # too, and the start is fitted again to the moved template within the same friction bound
         from .bend_drag import drag_offsets
         kb = np.interp(given.s, pattern.s, inputs[:, 2])
-        drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu,
-                                   start_m=_replaced_stretch(given, start_pattern)[1])
+        drag_offset = drag_offsets(given.s, given.tangent, kb, rod.gravito_bending_length_m, mu)
         if np.max(np.abs(drag_offset)) > 0:
             try:
                 template = process_pattern(given.xy + drag_offset, settings.step_m, 0.0, settings.end_weight)
