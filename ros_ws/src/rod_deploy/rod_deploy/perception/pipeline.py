@@ -67,6 +67,7 @@ from rod_deploy.perception.filled_loops import prune_blob_spurs, trace_filled_lo
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
                                                 estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.side_by_side import separate_side_by_side
+from rod_deploy.perception.slivers import drop_riding_strands
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
 from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
@@ -220,6 +221,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     if len(traced) > 1:
         traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
+        traced = drop_riding_strands(traced, half_width_at)
     t3 = time.perf_counter()
     timings['graph'] = (t3 - t2) * 1e3
 
