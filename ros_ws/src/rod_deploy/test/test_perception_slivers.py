@@ -30,3 +30,19 @@ def test_drop_riding_strands_refuses_bad_parameters():
     rods = [_line(0, 0, 0, 100, 101), _line(0, 0, 0, 50, 51)]
     with pytest.raises(ValueError):
         drop_riding_strands(rods, lambda p: np.full(len(p), 5.0), min_inside_fraction=0.0)
+
+
+@pytest.mark.parametrize('kind, seed', [('shallow', 14600010), ('letter_e', 16800008)])
+def test_crossing_scene_with_a_riding_strand_gets_the_right_count(kind, seed):
+    """Two development crossing scenes in which a strand of texture specks along a rod became an extra object
+    (main before the fourteenth round: 3 objects for 2 rods, 2 for 1); every rod within 1 px RMS and 2 px Eq. 17."""
+    from rod_deploy.perception.crossing_scenes import crossing_scene
+    from rod_deploy.perception.evaluation import arc_length_error, centreline_rms
+    from rod_deploy.perception.pipeline import perceive
+    sc = crossing_scene(kind, seed)
+    res = perceive(sc.image)
+    assert len(res.objects) == len(sc.curves)
+    for c in sc.curves:
+        best = min(res.objects, key=lambda o: centreline_rms(o.points, c)['rms_px'])
+        assert centreline_rms(best.points, c)['rms_px'] <= 1.0
+        assert arc_length_error(best.points, c)['mean_px'] <= 2.0
