@@ -31,7 +31,8 @@ sub-pixel refinement.
     the rod above it, a pen skip), and across up to ``max_hidden_factor`` w if the stretch between them
     is covered by the mask but for at most ``max_gap_factor`` w (a rod hidden under another one along a
     length, a shallow crossing); w there is the wider object's own width (the mask's, median along it)
-    where that is larger;
+    where that is larger; objects no longer than 12 widths lying half on a longer one are dropped (a strand of
+    texture specks along a rod, :func:`~.slivers.drop_riding_strands`);
  5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement (profiles across each path as wide as its
