@@ -31,7 +31,8 @@ sub-pixel refinement.
     the rod above it, a pen skip), and across up to ``max_hidden_factor`` w if the stretch between them
     is covered by the mask but for at most ``max_gap_factor`` w (a rod hidden under another one along a
     length, a shallow crossing); w there is the wider object's own width (the mask's, median along it)
-    where that is larger;
+    where that is larger; objects no longer than 12 widths lying half on a longer one are dropped (a strand of
+    texture specks along a rod, :func:`~.slivers.drop_riding_strands`);
  5. over/under at every crossing from colour where the strands differ, else from the occlusion edges
     (the upper strand's boundary runs on through the overlap), with a confidence (:mod:`.crossing_order`);
  6. centreline (:mod:`.centreline`): edge-centred refinement (profiles across each path as wide as its
@@ -67,6 +68,7 @@ from rod_deploy.perception.filled_loops import prune_blob_spurs, trace_filled_lo
 from rod_deploy.perception.segmentation import (Segmentation, SegmentationConfig, SegmentationError, _otsu, as_bgr,
                                                 estimate_background, foreground_evidence, segment)
 from rod_deploy.perception.side_by_side import separate_side_by_side
+from rod_deploy.perception.slivers import drop_riding_strands
 from rod_deploy.perception.skeleton_graph import (build_skeleton_graph, dissolve_pass_through_junctions,
                                                   prune_spurs, remove_small_parts, skeleton_of)
 from rod_deploy.perception.traversal import (drop_shadow_strands, join_gaps, place_abutting_end,
@@ -220,6 +222,7 @@ def perceive(image: np.ndarray, config: PerceptionConfig = PerceptionConfig()) -
 
     if len(traced) > 1:
         traced = drop_shadow_strands(traced, colour_full.lab_at, half_width_at, config.min_colour_separation)
+        traced = drop_riding_strands(traced, half_width_at)
     t3 = time.perf_counter()
     timings['graph'] = (t3 - t2) * 1e3
 
