@@ -67,8 +67,8 @@ CONTACT_FZ = np.array([0.7577, 0.7476, 0.7180, 0.6713, 0.6125, 0.5488, 0.4872, 0
 #: predicted drag per unit of friction excess [L_gb] (least-squares slope on the development runs)
 DRAG_GAIN = 0.30
 #: gains of the two terms (drag, shift) of ``drag_terms``: the shift term alone, its gain the least-squares fit to
-#: the refined templates of 6 development cases of the twelfth round's planner, offsets from the free end on
-#: (``benchmarks/drag_model_fit.py --from-free-end``, leak DRAG_SHIFT_M; ``drag_model_fit_r12.md``); the drag term
+#: the refined templates of 6 development cases of the eleventh round's planner, offsets from the free end on
+#: (``benchmarks/drag_model_fit.py``, its default; leak DRAG_SHIFT_M; ``drag_model_fit_r12.md``); the drag term
 #: added to it laid worse in our DER (``benchmarks/results/drag_terms_sweep_rods23_mu0.5.md``)
 DRAG_GAINS = (0.0, 0.43)
 #: leak length of the shift term's translation [m] (inf: it persists): the fit's leave-one-out RMS is flat from 0.6
