@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from rod_deploy.deployment.correction import Deployment, correct
+from rod_deploy.deployment.correction import Deployment, correct, rod_with
 from rod_deploy.deployment.metrics import eq17_error
 from rod_deploy.deployment.simulate import SimulationSettings, simulate_deployment
 from rod_deploy.planning.pattern_input import load_pattern
@@ -41,7 +41,7 @@ def case(name, k0, effect='natural_curvature_per_m'):
         P, rod, sim = P[:, :2], ROD3, SLOW
     else:
         P, rod, sim = {'line': LINE, 'hook': HOOK}[name], SHORT, FAST
-    true = dataclasses.replace(rod, **{EFFECT_FIELDS[effect]: k0})
+    true = rod_with(rod, {effect: k0})
     plan = plan_trajectory(P, rod)
     observed = simulate_deployment(plan.t, plan.position, plan.quaternion, true, sim).deployed_xy
     e_before = eq17_error(P, observed, directed=True)['e_mean_cm']
@@ -60,9 +60,8 @@ def case(name, k0, effect='natural_curvature_per_m'):
                 robustness=rp.robustness if rp else None, warnings=report['warnings'])
 
 
-#: the undeclared effect of a case: PATTERN:K0 (natural curvature), PATTERN:mu=VALUE, PATTERN:L_gb=VALUE
-EFFECT_FIELDS = {'natural_curvature_per_m': 'natural_curvature_per_m', 'friction': 'friction',
-                 'L_gb_m': 'gravito_bending_length_m'}
+#: the undeclared effect of a case (correction.rod_with's keys): PATTERN:K0 (natural curvature),
+#: PATTERN:mu=VALUE, PATTERN:L_gb=VALUE
 CASE_KEYS = {'mu': 'friction', 'L_gb': 'L_gb_m'}
 
 

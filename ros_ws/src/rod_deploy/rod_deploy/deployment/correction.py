@@ -425,7 +425,7 @@ def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_set
     rod = diagnosis.rod
     unmodelled = [k for k in diagnosis.fitted if k not in PLANNER_MODELS]
     e_old = eq17_error(pattern_xy, diagnosis.fitted_xy, directed=True)['e_mean_cm']
-    best = Candidate(e_old, deployment, diagnosis.fitted_xy)
+    original = best = Candidate(e_old, deployment, diagnosis.fitted_xy)
     count = 0
     if 'L_gb_m' in diagnosis.fitted:
         planned = plan_trajectory(pattern_xy, rod, planner_settings)
@@ -460,7 +460,7 @@ def replan(pattern_xy, diagnosis: Diagnosis, deployment: Deployment, planner_set
         check = robustness(pattern_xy, best, diagnosis, sim_settings, e_old, progress)
         count += check['simulations']
         if not check['robust']:
-            best = Candidate(e_old, deployment, diagnosis.fitted_xy)
+            best = original
     dep = best.deployment
     return Replan(dep.t, dep.position, dep.quaternion, best.replanned, best.deployed_xy, best.e_mean_cm, e_old,
                   count, best.planner_L_gb_m, record, check)
